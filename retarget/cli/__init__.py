@@ -1,0 +1,83 @@
+"""The ``retarget`` command line.
+
+Each subcommand lives in its own module ``retarget.cli.<name>`` with two
+functions: ``add_parser(subparsers) -> argparse.ArgumentParser`` and
+``run(args) -> int``.  Data goes to stdout; progress and messages to stderr.
+
+Errors: a :class:`~retarget.errors.RetargetError` (bad file, bad config, bus
+failure) prints one line ``retarget: <message>`` on stderr and exits with the
+command's error status (2 for bad input by default); ``-v`` also prints the
+traceback.  Ctrl-C exits 130 after the command's own cleanup ran.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+import traceback
+from collections.abc import Sequence
+
+from retarget.errors import BusError, RetargetError
+
+#: Subcommands in the order ``--help`` lists them.
+COMMANDS: tuple[str, ...] = ("inspect",)
+
+EXIT_OK = 0
+EXIT_USAGE = 2  #: bad input: a file, a config key, an option value
+EXIT_BUS = 4  #: the bus failed (no reply, hardware alert)
+EXIT_INTERRUPTED = 130
+
+EPILOG = """\
+examples:
+  retarget inspect clip.bvh            show the skeleton, frame rate and arm chains
+  retarget inspect clip.bvh --json     the same as JSON on stdout
+
+run 'retarget COMMAND --help' for each command's own examples.
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="retarget",
+        description="Retarget BVH human arm motion onto Dynamixel servo arms.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output; show tracebacks")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name in COMMANDS:
+        module = importlib.import_module(f"retarget.cli.{name}")
+        sub_parser = module.add_parser(sub)
+        sub_parser.set_defaults(_run=module.run)
+        # let -v work after the subcommand too: `retarget inspect x.bvh -v`
+        sub_parser.add_argument("-v", "--verbose", action="count", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(
+        level=logging.DEBUG if args.verbose > 1 else logging.INFO if args.verbose else logging.WARNING,
+        format="%(levelname)s %(name)s: %(message)s",
+        stream=sys.stderr,
+    )
+    try:
+        return int(args._run(args) or 0)
+    except RetargetError as exc:
+        if args.verbose:
+            traceback.print_exc()
+        print(f"retarget: {exc}", file=sys.stderr)
+        return EXIT_BUS if isinstance(exc, BusError) else EXIT_USAGE
+    except KeyboardInterrupt:
+        print("retarget: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:  # `retarget inspect x --json | head`
+        return EXIT_OK
+    except OSError as exc:  # a file that cannot be opened, a port that does not exist
+        if args.verbose:
+            traceback.print_exc()
+        print(f"retarget: {exc}", file=sys.stderr)
+        return EXIT_USAGE
