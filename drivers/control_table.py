@@ -1,0 +1,560 @@
+"""Dynamixel X-series control tables, kept as data: the one source of truth for the driver and the simulator.
+
+Each :class:`Model` maps register names, spelled as in the ROBOTIS e-Manual ("Goal Position"), to a
+:class:`Register` (address, size, access, EEPROM or RAM, default, data range, signedness, unit).
+Models: XL430-W250 (1060), XM430-W350 (1020), XL330-M288 (1200), XM540-W270 (1120); the names equal
+``retarget.arm.SERVO_MODELS``.
+
+Sources: the e-Manual pages ``docs/en/dxl/x/{xl430-w250,xm430-w350,xl330-m288,xm540-w270}.md`` (control
+tables of the EEPROM and RAM areas) and ``docs/en/dxl/protocol2.md`` (instructions, status errors).
+
+Two kinds of bound, as the servo checks them on a write:
+
+* ``minimum``/``maximum``: the static data range; a value outside it answers **Data Range** error (4).
+* ``limit``: a pair of register names bounding the value at run time, e.g. Goal Position within
+  ("Min Position Limit", "Max Position Limit"); a leading ``-`` negates, so Goal Velocity is within
+  ("-Velocity Limit", "Velocity Limit").  A value outside answers **Data Limit** error (6).
+
+EEPROM registers (address < 64) are writable only while Torque Enable is 0, else **Access** error (7).
+XL430-W250 has no current sensing: address 126 is "Present Load" (0.1 %) and it has no Current Limit
+and Goal Current; use :attr:`Model.load_register` for the name.
+
+This module imports nothing beyond the standard library, so ``drivers`` and ``sim`` may both use it.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+
+# --------------------------------------------------------------------------- protocol constants
+
+
+class Instruction(enum.IntEnum):
+    """Protocol 2.0 instruction bytes."""
+
+    PING = 0x01
+    READ = 0x02
+    WRITE = 0x03
+    REG_WRITE = 0x04
+    ACTION = 0x05
+    FACTORY_RESET = 0x06
+    REBOOT = 0x08
+    CLEAR = 0x10
+    CONTROL_TABLE_BACKUP = 0x20
+    STATUS = 0x55
+    SYNC_READ = 0x82
+    SYNC_WRITE = 0x83
+    FAST_SYNC_READ = 0x8A
+    BULK_READ = 0x92
+    BULK_WRITE = 0x93
+    FAST_BULK_READ = 0x9A
+
+
+class StatusError(enum.IntEnum):
+    """The error *number* in bits 0-6 of a status packet's ERR byte (bit 7 is :data:`ALERT_BIT`)."""
+
+    NONE = 0
+    RESULT_FAIL = 1  #: failed to process the instruction
+    INSTRUCTION = 2  #: undefined instruction, or ACTION without REG_WRITE
+    CRC = 3  #: CRC of the instruction does not match
+    DATA_RANGE = 4  #: value outside the register's range
+    DATA_LENGTH = 5  #: data shorter than the register, or a length that does not fit
+    DATA_LIMIT = 6  #: value outside a limit register (e.g. Goal Position vs Position Limits)
+    ACCESS = 7  #: read-only / undefined address, or an EEPROM write with torque on
+
+
+#: Bit 7 of the ERR byte: the device has a hardware error; read Hardware Error Status (70).
+ALERT_BIT = 0x80
+
+BROADCAST_ID = 0xFE
+MAX_ID = 252
+
+
+class HardwareError(enum.IntFlag):
+    """Bits of Hardware Error Status (70) and of the Shutdown (63) mask."""
+
+    INPUT_VOLTAGE = 0x01
+    OVERHEATING = 0x04
+    MOTOR_ENCODER = 0x08
+    ELECTRICAL_SHOCK = 0x10
+    OVERLOAD = 0x20
+
+
+def hardware_error_names(bits: int) -> tuple[str, ...]:
+    """``0x24 -> ("overheating", "overload")``: the lower-case names of the set bits, lowest first."""
+    return tuple(e.name.lower() for e in HardwareError if bits & e.value)
+
+
+class OperatingMode(enum.IntEnum):
+    """Operating Mode (11)."""
+
+    CURRENT = 0
+    VELOCITY = 1
+    POSITION = 3
+    EXTENDED_POSITION = 4
+    CURRENT_BASED_POSITION = 5
+    PWM = 16
+
+
+class DriveMode(enum.IntFlag):
+    """Bits of Drive Mode (10)."""
+
+    REVERSE = 0x01  #: CCW negative, CW positive: Goal/Present Position (and velocity, current) invert
+    DUAL_SLAVE = 0x02  #: X540 dual joint slave (driven by the master's sync cable)
+    TIME_BASED_PROFILE = 0x04  #: Profile Acceleration/Velocity are times in ms instead of rates
+    TORQUE_ON_BY_GOAL = 0x08  #: a goal write turns torque on (newer firmware)
+
+
+class FactoryReset(enum.IntEnum):
+    """The parameter of FACTORY_RESET (0x06)."""
+
+    ALL = 0xFF  #: reset every item, ID and Baud Rate included
+    EXCEPT_ID = 0x01  #: keep the ID
+    EXCEPT_ID_AND_BAUD = 0x02  #: keep the ID and the Baud Rate
+
+
+#: Baud Rate (8) register value -> bits per second.
+BAUD_RATES: Mapping[int, int] = MappingProxyType(
+    {0: 9600, 1: 57600, 2: 115200, 3: 1_000_000, 4: 2_000_000, 5: 3_000_000, 6: 4_000_000, 7: 4_500_000}
+)
+#: bits per second -> Baud Rate (8) register value.
+BAUD_CODES: Mapping[int, int] = MappingProxyType({bps: code for code, bps in BAUD_RATES.items()})
+
+# --------------------------------------------------------------------------- units
+
+PULSES_PER_REV = 4096
+RAD_PER_PULSE = 2.0 * math.pi / PULSES_PER_REV  #: Present/Goal Position unit, ~0.088 deg
+RPM_PER_VELOCITY_UNIT = 0.229  #: Velocity Limit, Goal/Present Velocity, Profile Velocity unit
+RPM2_PER_ACCEL_UNIT = 214.577  #: Profile Acceleration unit (velocity-based profile), rev/min^2
+VOLT_PER_UNIT = 0.1  #: Present Input Voltage and the voltage limits
+RETURN_DELAY_UNIT_S = 2e-6  #: Return Delay Time (9) unit
+
+
+def pulses_to_rad(pulses: float) -> float:
+    return pulses * RAD_PER_PULSE
+
+
+def rad_to_pulses(rad: float) -> float:
+    return rad / RAD_PER_PULSE
+
+
+def velocity_units_to_rad_s(units: float) -> float:
+    """Velocity register units (0.229 rev/min) to rad/s."""
+    return units * RPM_PER_VELOCITY_UNIT * 2.0 * math.pi / 60.0
+
+
+def rad_s_to_velocity_units(rad_s: float) -> float:
+    return rad_s * 60.0 / (2.0 * math.pi * RPM_PER_VELOCITY_UNIT)
+
+
+# --------------------------------------------------------------------------- register and model types
+
+
+class Access(enum.Enum):
+    R = "R"
+    RW = "RW"
+
+
+EEPROM_END = 64  #: addresses below this are the EEPROM area
+
+
+@dataclass(frozen=True)
+class Register:
+    """One control-table item.
+
+    ``default`` is the value after a factory reset (``None``: set by the device, e.g. Present Position).
+    ``minimum``/``maximum`` is the static data range (``None``: the full range of the size/signedness).
+    ``limit`` names the registers bounding the value at run time (see the module docstring).
+    """
+
+    name: str
+    address: int
+    size: int
+    access: Access
+    default: int | None = None
+    minimum: int | None = None
+    maximum: int | None = None
+    signed: bool = False
+    unit: str = ""
+    limit: tuple[str, str] | None = None
+
+    @property
+    def eeprom(self) -> bool:
+        return self.address < EEPROM_END
+
+    @property
+    def writable(self) -> bool:
+        return self.access is Access.RW
+
+    @property
+    def end(self) -> int:
+        """One past the last byte."""
+        return self.address + self.size
+
+    @property
+    def type_min(self) -> int:
+        return -(1 << (8 * self.size - 1)) if self.signed else 0
+
+    @property
+    def type_max(self) -> int:
+        return (1 << (8 * self.size - 1)) - 1 if self.signed else (1 << (8 * self.size)) - 1
+
+    def encode(self, value: int) -> bytes:
+        """Little-endian bytes of ``value``; raises ValueError when it does not fit the register."""
+        if not self.type_min <= value <= self.type_max:
+            raise ValueError(f"{self.name}: expected {self.type_min}..{self.type_max}, got {value}")
+        return int(value).to_bytes(self.size, "little", signed=self.signed)
+
+    def decode(self, data: bytes | bytearray | memoryview) -> int:
+        """The value of ``size`` little-endian bytes."""
+        if len(data) != self.size:
+            raise ValueError(f"{self.name}: expected {self.size} bytes, got {len(data)}")
+        return int.from_bytes(bytes(data), "little", signed=self.signed)
+
+    def in_range(self, value: int) -> bool:
+        lo = self.type_min if self.minimum is None else self.minimum
+        hi = self.type_max if self.maximum is None else self.maximum
+        return lo <= value <= hi
+
+
+@dataclass(frozen=True)
+class Model:
+    """One servo model: its number, registers and the few physical facts the simulator needs."""
+
+    name: str
+    number: int
+    registers: Mapping[str, Register]
+    no_load_rpm: float  #: at ``nominal_voltage``
+    nominal_voltage: float  #: volts, the recommended supply
+    stall_torque: float  #: N*m at ``nominal_voltage``
+    firmware: int  #: the Firmware Version (6) the simulator reports
+    current_unit_ma: float | None  #: Present Current unit in mA; ``None`` when 126 is Present Load (0.1 %)
+    operating_modes: tuple[OperatingMode, ...]
+    max_baud_code: int = 7
+    fast_read_min_firmware: int = 45  #: FAST_SYNC_READ / FAST_BULK_READ need at least this firmware
+    table_size: int = 662  #: bytes of control-table memory (highest address + 1)
+    _by_address: Mapping[int, Register] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_by_address", MappingProxyType({r.address: r for r in self.registers.values()}))
+
+    @property
+    def fast_sync_read(self) -> bool:
+        """Whether this firmware answers FAST_SYNC_READ and FAST_BULK_READ."""
+        return self.firmware >= self.fast_read_min_firmware
+
+    @property
+    def load_register(self) -> str:
+        """``"Present Current"``, or ``"Present Load"`` on models without current sensing (XL430)."""
+        return "Present Current" if "Present Current" in self.registers else "Present Load"
+
+    def register(self, name: str) -> Register:
+        """The register called ``name``; KeyError naming the model and the close names otherwise."""
+        try:
+            return self.registers[name]
+        except KeyError:
+            raise KeyError(f"{self.name} has no register {name!r}") from None
+
+    def at(self, address: int) -> Register | None:
+        """The register starting at ``address``, or None."""
+        return self._by_address.get(address)
+
+    def covering(self, address: int, length: int) -> list[Register]:
+        """Registers overlapping ``[address, address + length)``, by address."""
+        end = address + length
+        return sorted(
+            (r for r in self.registers.values() if r.address < end and address < r.end), key=lambda r: r.address
+        )
+
+    def defaults(self) -> bytearray:
+        """The control-table memory after a factory reset: ``table_size`` bytes, every default encoded."""
+        mem = bytearray(self.table_size)
+        for reg in self.registers.values():
+            if reg.default is not None:
+                mem[reg.address : reg.end] = reg.encode(reg.default)
+        return mem
+
+
+# --------------------------------------------------------------------------- the tables
+
+R, RW = Access.R, Access.RW
+
+
+def _row(
+    name: str,
+    address: int,
+    size: int,
+    access: Access,
+    default: int | None = None,
+    minimum: int | None = None,
+    maximum: int | None = None,
+    *,
+    signed: bool = False,
+    unit: str = "",
+    limit: tuple[str, str] | None = None,
+) -> Register:
+    return Register(name, address, size, access, default, minimum, maximum, signed, unit, limit)
+
+
+def _x_series_common(
+    *,
+    model_number: int,
+    firmware: int,
+    baud_max: int,
+    drive_mode_max: int,
+    temperature_limit: int,
+    voltage: tuple[int, int, int, int],  # max default, min default, range lo, range hi
+    velocity_limit: tuple[int, int],  # default, max
+    gains: tuple[int, int, int, int, int],  # vel I, vel P, pos D, pos I, pos P
+    shutdown: int,
+) -> list[Register]:
+    vmax_default, vmin_default, v_lo, v_hi = voltage
+    vel_default, vel_max = velocity_limit
+    vi, vp, pd, pi, pp = gains
+    return [
+        # EEPROM area
+        _row("Model Number", 0, 2, R, model_number),
+        _row("Model Information", 2, 4, R, 0),
+        _row("Firmware Version", 6, 1, R, firmware),
+        _row("ID", 7, 1, RW, 1, 0, 252),
+        _row("Baud Rate", 8, 1, RW, 1, 0, baud_max),
+        _row("Return Delay Time", 9, 1, RW, 250, 0, 254, unit="2 us"),
+        _row("Drive Mode", 10, 1, RW, 0, 0, drive_mode_max),
+        _row("Operating Mode", 11, 1, RW, 3, 0, 16),
+        _row("Secondary(Shadow) ID", 12, 1, RW, 255, 0, 255),
+        _row("Protocol Type", 13, 1, RW, 2, 1, 2),
+        _row("Homing Offset", 20, 4, RW, 0, -1_044_479, 1_044_479, signed=True, unit="pulse"),
+        _row("Moving Threshold", 24, 4, RW, 10, 0, 1023, unit="0.229 rpm"),
+        _row("Temperature Limit", 31, 1, RW, temperature_limit, 0, 100, unit="degC"),
+        _row("Max Voltage Limit", 32, 2, RW, vmax_default, v_lo, v_hi, unit="0.1 V"),
+        _row("Min Voltage Limit", 34, 2, RW, vmin_default, v_lo, v_hi, unit="0.1 V"),
+        _row("PWM Limit", 36, 2, RW, 885, 0, 885, unit="0.113 %"),
+        _row("Velocity Limit", 44, 4, RW, vel_default, 0, vel_max, unit="0.229 rpm"),
+        _row("Max Position Limit", 48, 4, RW, 4095, 0, 4095, unit="pulse"),
+        _row("Min Position Limit", 52, 4, RW, 0, 0, 4095, unit="pulse"),
+        _row("Startup Configuration", 60, 1, RW, 0, 0, 3),
+        _row("Shutdown", 63, 1, RW, shutdown, 0, 0x3F),
+        # RAM area
+        _row("Torque Enable", 64, 1, RW, 0, 0, 1),
+        _row("LED", 65, 1, RW, 0, 0, 1),
+        _row("Status Return Level", 68, 1, RW, 2, 0, 2),
+        _row("Registered Instruction", 69, 1, R, 0),
+        _row("Hardware Error Status", 70, 1, R, 0),
+        _row("Velocity I Gain", 76, 2, RW, vi, 0, 16383),
+        _row("Velocity P Gain", 78, 2, RW, vp, 0, 16383),
+        _row("Position D Gain", 80, 2, RW, pd, 0, 16383),
+        _row("Position I Gain", 82, 2, RW, pi, 0, 16383),
+        _row("Position P Gain", 84, 2, RW, pp, 0, 16383),
+        _row("Feedforward 2nd Gain", 88, 2, RW, 0, 0, 16383),
+        _row("Feedforward 1st Gain", 90, 2, RW, 0, 0, 16383),
+        _row("Bus Watchdog", 98, 1, RW, 0, 0, 127, unit="20 ms"),
+        _row("Goal PWM", 100, 2, RW, 0, signed=True, unit="0.113 %", limit=("-PWM Limit", "PWM Limit")),
+        _row(
+            "Goal Velocity", 104, 4, RW, 0, signed=True, unit="0.229 rpm", limit=("-Velocity Limit", "Velocity Limit")
+        ),
+        _row("Profile Acceleration", 108, 4, RW, 0, 0, 32767, unit="214.577 rev/min^2 | ms"),
+        _row("Profile Velocity", 112, 4, RW, 0, 0, 32767, unit="0.229 rpm | ms"),
+        _row(
+            "Goal Position",
+            116,
+            4,
+            RW,
+            None,
+            -1_048_575,
+            1_048_575,
+            signed=True,
+            unit="pulse",
+            limit=("Min Position Limit", "Max Position Limit"),
+        ),
+        _row("Realtime Tick", 120, 2, R, 0, 0, 32767, unit="ms"),
+        _row("Moving", 122, 1, R, 0),
+        _row("Moving Status", 123, 1, R, 0),
+        _row("Present PWM", 124, 2, R, 0, signed=True),
+        _row("Present Velocity", 128, 4, R, 0, signed=True, unit="0.229 rpm"),
+        _row("Present Position", 132, 4, R, None, signed=True, unit="pulse"),
+        _row("Velocity Trajectory", 136, 4, R, 0, signed=True, unit="0.229 rpm"),
+        _row("Position Trajectory", 140, 4, R, None, signed=True, unit="pulse"),
+        _row("Present Input Voltage", 144, 2, R, None, unit="0.1 V"),
+        _row("Present Temperature", 146, 1, R, None, unit="degC"),
+        _row("Backup Ready", 147, 1, R, 0, 0, 1),
+    ]
+
+
+def _current_rows(limit_default: int, unit: str) -> list[Register]:
+    return [
+        _row("Current Limit", 38, 2, RW, limit_default, 0, limit_default, unit=unit),
+        _row("Goal Current", 102, 2, RW, 0, signed=True, unit=unit, limit=("-Current Limit", "Current Limit")),
+        _row("Present Current", 126, 2, R, 0, signed=True, unit=unit),
+    ]
+
+
+def _indirect_rows(n_first: int, n_second: int) -> list[Register]:
+    """Indirect Address/Data: ``n_first`` pairs at 168.., and ``n_second`` more at 578.. (X430/X540 only)."""
+    rows: list[Register] = []
+    data1 = 168 + 2 * n_first
+    for i in range(n_first):
+        rows.append(_row(f"Indirect Address {i + 1}", 168 + 2 * i, 2, RW, data1 + i, 64, data1 + n_first - 1))
+        rows.append(_row(f"Indirect Data {i + 1}", data1 + i, 1, RW, 0, 0, 255))
+    data2 = 578 + 2 * n_second
+    for i in range(n_second):
+        n = n_first + i + 1
+        rows.append(_row(f"Indirect Address {n}", 578 + 2 * i, 2, RW, data2 + i, 64, 661))
+        rows.append(_row(f"Indirect Data {n}", data2 + i, 1, RW, 0, 0, 255))
+    if n_second:  # X430/X540: any indirect address may point anywhere in 64..661
+        rows = [
+            Register(r.name, r.address, r.size, r.access, r.default, 64, 661)
+            if r.name.startswith("Indirect Address")
+            else r
+            for r in rows
+        ]
+    return rows
+
+
+def _model(
+    name: str, number: int, rows: Iterable[Register], **facts: object
+) -> Model:  # facts: the physical fields of Model
+    regs = {r.name: r for r in sorted(rows, key=lambda r: r.address)}
+    return Model(name=name, number=number, registers=MappingProxyType(regs), **facts)  # type: ignore[arg-type]
+
+
+_ALL_MODES = tuple(OperatingMode)
+
+XL430_W250 = _model(
+    "XL430-W250",
+    1060,
+    [
+        *_x_series_common(
+            model_number=1060,
+            firmware=46,
+            baud_max=7,
+            drive_mode_max=13,
+            temperature_limit=72,
+            voltage=(140, 60, 60, 140),
+            velocity_limit=(265, 1023),
+            gains=(1000, 100, 4000, 0, 640),
+            shutdown=52,
+        ),
+        _row("Present Load", 126, 2, R, 0, -1000, 1000, signed=True, unit="0.1 %"),
+        *_indirect_rows(28, 28),
+    ],
+    no_load_rpm=57.0,
+    nominal_voltage=11.1,
+    stall_torque=1.4,
+    firmware=46,
+    current_unit_ma=None,
+    operating_modes=(
+        OperatingMode.VELOCITY,
+        OperatingMode.POSITION,
+        OperatingMode.EXTENDED_POSITION,
+        OperatingMode.PWM,
+    ),
+)
+
+XM430_W350 = _model(
+    "XM430-W350",
+    1020,
+    [
+        *_x_series_common(
+            model_number=1020,
+            firmware=46,
+            baud_max=7,
+            drive_mode_max=13,
+            temperature_limit=80,
+            voltage=(160, 95, 95, 160),
+            velocity_limit=(200, 1023),
+            gains=(1920, 100, 0, 0, 800),
+            shutdown=52,
+        ),
+        *_current_rows(1193, "2.69 mA"),
+        *_indirect_rows(28, 28),
+    ],
+    no_load_rpm=46.0,
+    nominal_voltage=12.0,
+    stall_torque=4.1,
+    firmware=46,
+    current_unit_ma=2.69,
+    operating_modes=_ALL_MODES,
+)
+
+XL330_M288 = _model(
+    "XL330-M288",
+    1200,
+    [
+        *_x_series_common(
+            model_number=1200,
+            firmware=46,
+            baud_max=6,
+            drive_mode_max=13,
+            temperature_limit=70,
+            voltage=(70, 35, 31, 70),
+            velocity_limit=(445, 2047),
+            gains=(1600, 180, 0, 0, 400),
+            shutdown=53,
+        ),
+        _row("PWM Slope", 62, 1, RW, 140, 1, 255, unit="1.977 mV/ms"),
+        *_current_rows(1750, "1 mA"),
+        *_indirect_rows(20, 0),
+    ],
+    no_load_rpm=103.0,
+    nominal_voltage=5.0,
+    stall_torque=0.52,
+    firmware=46,
+    current_unit_ma=1.0,
+    operating_modes=_ALL_MODES,
+    max_baud_code=6,
+    fast_read_min_firmware=46,
+    table_size=228,
+)
+
+XM540_W270 = _model(
+    "XM540-W270",
+    1120,
+    [
+        *_x_series_common(
+            model_number=1120,
+            firmware=46,
+            baud_max=7,
+            drive_mode_max=15,
+            temperature_limit=80,
+            voltage=(160, 95, 95, 160),
+            velocity_limit=(128, 1023),
+            gains=(1920, 100, 0, 0, 800),
+            shutdown=52,
+        ),
+        *_current_rows(2047, "2.69 mA"),
+        _row("External Port Mode 1", 56, 1, RW, 3, 0, 3),
+        _row("External Port Mode 2", 57, 1, RW, 3, 0, 3),
+        _row("External Port Mode 3", 58, 1, RW, 3, 0, 3),
+        _row("External Port Data 1", 152, 2, RW, 0),
+        _row("External Port Data 2", 154, 2, RW, 0),
+        _row("External Port Data 3", 156, 2, RW, 0),
+        *_indirect_rows(28, 28),
+    ],
+    no_load_rpm=30.0,
+    nominal_voltage=12.0,
+    stall_torque=10.6,
+    firmware=46,
+    current_unit_ma=2.69,
+    operating_modes=_ALL_MODES,
+)
+
+#: Every model by name ("XM430-W350"); the names equal ``retarget.arm.SERVO_MODELS``.
+MODELS: Mapping[str, Model] = MappingProxyType({m.name: m for m in (XL430_W250, XM430_W350, XL330_M288, XM540_W270)})
+#: Every model by Model Number (1020).
+MODEL_BY_NUMBER: Mapping[int, Model] = MappingProxyType({m.number: m for m in MODELS.values()})
+
+
+def model(name_or_number: str | int) -> Model:
+    """The model called ``"XM430-W350"`` (case-insensitive) or numbered ``1020``; KeyError listing the known ones."""
+    if isinstance(name_or_number, int):
+        found = MODEL_BY_NUMBER.get(name_or_number)
+    else:
+        found = MODELS.get(str(name_or_number).upper())
+    if found is None:
+        known = ", ".join(f"{m.name} ({m.number})" for m in MODELS.values())
+        raise KeyError(f"Expected one of {known}, got {name_or_number!r}")
+    return found
