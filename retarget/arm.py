@@ -10,12 +10,15 @@ TOML files under ``config/arms/`` hold limits in degrees (see
 from __future__ import annotations
 
 import enum
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from retarget.kinematics import Chain
 
 #: Servo models the arm descriptions may name; ``drivers.control_table`` holds their registers.
 SERVO_MODELS: tuple[str, ...] = ("XL430-W250", "XM430-W350", "XL330-M288", "XM540-W270")
@@ -86,6 +89,9 @@ class Arm:
     #: the raw ``[mapping]`` table, read and validated by retarget.mapping
     mapping: Mapping[str, Any] = field(default_factory=dict)
     source: Path | None = None  #: the file it was loaded from
+    title: str = ""  #: human name, e.g. "WidowX-250 6DOF"
+    #: private per-instance cache (precomputed kinematic chain, IK solvers); not part of equality
+    _cache: dict[str, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @property
     def n_joints(self) -> int:
@@ -127,3 +133,31 @@ class Arm:
         if self.gripper is not None:
             ids.append(self.gripper.servo.id)
         return tuple(ids)
+
+    @property
+    def chain(self) -> Chain:
+        """The precomputed kinematic chain (constant transforms), built once per arm."""
+        chain = self._cache.get("chain")
+        if chain is None:
+            from retarget.kinematics import Chain
+
+            chain = self._cache["chain"] = Chain(self)
+        return chain
+
+    def fk(self, q: np.ndarray | Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+        """Forward kinematics of joint angles ``q`` ``(n_joints,)`` radians.
+
+        Returns ``(T_tool, points)``: the ``(4, 4)`` pose of the tool point in the base
+        frame (metres) and ``(n_joints + 1, 3)`` positions of every joint origin then the
+        tool point, base frame, metres (for drawing).  See ``retarget.kinematics.fk``.
+        """
+        return self.chain.fk(q)
+
+    def clip(self, q: np.ndarray) -> np.ndarray:
+        """``q`` clipped to the joint limits, ``(..., n_joints)`` radians."""
+        return np.clip(q, self.lower, self.upper)
+
+    def within_limits(self, q: np.ndarray, *, atol: float = 0.0) -> bool:
+        """True when every angle of ``q`` ``(..., n_joints)`` lies inside the limits (plus ``atol`` rad)."""
+        q = np.asarray(q, dtype=np.float64)
+        return bool(np.all(q >= self.lower - atol) and np.all(q <= self.upper + atol))
