@@ -1,0 +1,569 @@
+"""Limit-aware cyclic coordinate descent (CCD) inverse kinematics.
+
+One *sweep* visits the joints from the tip to the base.  Joint ``j`` (unit world axis
+``a`` through pivot ``p``) takes the exact minimiser of the tool-to-target distance
+over its own angle, with ``u = e - p`` (tool point) and ``v = t - p`` (target)::
+
+    theta* = atan2(a . (u x v), u . v - (a . u)(a . v))      # = atan2(a.(u⊥ x v⊥), u⊥ . v⊥)
+    q_j   <- clamp(q_j + w_j theta*, lower_j, upper_j)
+
+``theta*`` lies in ``(-pi, pi]`` and the clamp never wraps, so no joint ever jumps
+through a limit or by a full turn, and the distance never grows.  The tool point is
+then rotated about that joint incrementally, so a sweep costs one forward pass plus
+``n_joints`` closed-form updates, all in plain Python floats (numpy per joint is ~9x
+slower at this size).
+
+Around that update:
+
+- **early-out**: no sweep runs when the tool is already within ``tolerance``, and a
+  sweep stops as soon as it gets there;
+- **budget**: ``max_iterations`` sweeps per call (restarts included); when it runs
+  out the best pose found is returned with ``converged=False`` and its residual;
+- **escape from limit minima**: when a sweep improves the distance by less than
+  ``stall_ratio`` and the target is within the arm's reach bound, the solve restarts
+  from a new seed (the ``q0`` pose with the waist turned to the target, then
+  deterministic pseudo-random poses from ``seed``), keeping the best pose;
+- **orientation** (optional ``rotation``): the Wang & Chen position + orientation
+  update, ``phi* = atan2(k3, k2 - k1)``, with position terms scaled by the arm's reach so
+  that ``orientation_weight`` is dimensionless;
+- **unreachable targets**: CCD never increases the distance, so the result is the
+  closest pose it found, never NaN.
+
+Arrays: ``q`` is ``(n_joints,)`` float64 radians in ``Arm.joint_names`` order;
+targets are ``(3,)`` metres in the arm's base frame; ``rotation`` is a ``(3, 3)``
+rotation matrix of the tool frame in the base frame.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+import random
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from retarget.errors import ConfigError
+
+if TYPE_CHECKING:
+    from retarget.arm import Arm
+
+__all__ = ["IKResult", "CCDSolver", "Weighting", "solve_ik", "joint_weights"]
+
+_atan2 = math.atan2
+_cos = math.cos
+_sin = math.sin
+_EPS2 = 1e-16  #: |u⊥|^2 |v⊥|^2 below this (m^4): the joint cannot move the tool toward the target
+
+
+class Weighting(enum.Enum):
+    """Per-joint CCD weights ``w_j`` scaling each joint's update (``j = 0`` is the base, ``n`` joints).
+
+    ``UNIFORM`` (1 for every joint) is the default: it takes each joint's exact minimiser,
+    which converges in the fewest sweeps, and warm starts keep the motion small.  The
+    others damp the joints near the base so the motion favours the wrist:
+    ``LINEAR`` ``(j+1)/n``, ``SQRT`` ``sqrt((j+1)/n)``, ``POWER`` ``((j+1)/n)**exponent``.
+    """
+
+    UNIFORM = "uniform"
+    LINEAR = "linear"
+    SQRT = "sqrt"
+    POWER = "power"
+
+
+def joint_weights(
+    n: int, weights: Weighting | str | Sequence[float] | np.ndarray = Weighting.UNIFORM, *, exponent: float = 2.0
+) -> tuple[float, ...]:
+    """The ``(n,)`` per-joint weights of a :class:`Weighting` (or its name) or explicit values in ``(0, 1]``."""
+    if isinstance(weights, str | Weighting):
+        try:
+            kind = Weighting(weights)
+        except ValueError:
+            names = ", ".join(w.value for w in Weighting)
+            message = f"unknown weighting; expected one of {names} or {n} numbers"
+            raise ConfigError(message, key="weights", value=weights) from None
+        frac = [(j + 1) / n for j in range(n)]
+        if kind is Weighting.UNIFORM:
+            return (1.0,) * n
+        if kind is Weighting.LINEAR:
+            return tuple(frac)
+        if kind is Weighting.SQRT:
+            return tuple(math.sqrt(f) for f in frac)
+        if not (math.isfinite(exponent) and exponent > 0):
+            raise ConfigError("weight exponent must be a finite number > 0", key="weight_exponent", value=exponent)
+        return tuple(f**exponent for f in frac)
+    values = np.asarray(weights, dtype=np.float64)
+    if values.shape != (n,):
+        raise ConfigError(f"Expected {n} per-joint weights, got shape {values.shape}", key="weights", value=weights)
+    if not np.all((values > 0) & (values <= 1)):
+        raise ConfigError("per-joint weights must lie in (0, 1]", key="weights", value=values.tolist())
+    return tuple(values.tolist())
+
+
+@dataclass(frozen=True, eq=False)
+class IKResult:
+    """The outcome of one solve.
+
+    ``q``: ``(n_joints,)`` float64 radians, always inside the limits;
+    ``error``: distance tool point -> target, metres;
+    ``iterations``: sweeps run (0 when the start was already within tolerance);
+    ``converged``: ``error <= tolerance`` (and, with a rotation target, ``orientation_error <=
+    orientation_tolerance``); ``orientation_error``: radians, ``nan`` without a rotation target;
+    ``restarts``: seeds tried after stalls.
+    """
+
+    q: np.ndarray
+    error: float
+    iterations: int
+    converged: bool
+    orientation_error: float = math.nan
+    restarts: int = 0
+
+
+def _principal(axis: tuple[float, float, float]) -> tuple[int, float]:
+    """(0|1|2, sign) when ``axis`` is +-x, +-y or +-z, else (-1, 1)."""
+    for k in range(3):
+        if abs(abs(axis[k]) - 1.0) < 1e-12 and all(abs(axis[i]) < 1e-12 for i in range(3) if i != k):
+            return k, math.copysign(1.0, axis[k])
+    return -1, 1.0
+
+
+class CCDSolver:
+    """A reusable CCD solver for one arm: everything constant is precomputed once.
+
+    Keyword-only knobs (the defaults are what the control loop uses):
+
+    - ``tolerance``: metres, position convergence (default 1 mm);
+    - ``max_iterations``: sweep budget per solve, restarts included (default 100);
+    - ``weights``: a :class:`Weighting`, its name, or ``n_joints`` values in ``(0, 1]``;
+      ``weight_exponent`` for ``power`` (default 2);
+    - ``orientation_weight``: weight of the orientation terms against the (reach-scaled)
+      position terms (default 1); ``orientation_tolerance``: radians (default 0.01);
+    - ``restarts``: how many new seeds may be tried after stalls (default 16);
+      ``stall_ratio``: a sweep that leaves more than this fraction of the squared error
+      is a stall (default 0.99); ``seed``: seeds the pseudo-random restarts, so a solve is a
+      pure function of its inputs.
+    """
+
+    def __init__(
+        self,
+        arm: Arm,
+        *,
+        tolerance: float = 1e-3,
+        max_iterations: int = 100,
+        weights: Weighting | str | Sequence[float] | np.ndarray = Weighting.UNIFORM,
+        weight_exponent: float = 2.0,
+        orientation_weight: float = 1.0,
+        orientation_tolerance: float = 1e-2,
+        restarts: int = 16,
+        stall_ratio: float = 0.99,
+        seed: int = 0,
+    ):
+        self.arm = arm
+        n = self.n = arm.n_joints
+        self.tolerance = _positive(tolerance, "tolerance")
+        self.max_iterations = _count(max_iterations, "max_iterations")
+        self.weights = joint_weights(n, weights, exponent=weight_exponent)
+        self.orientation_weight = _positive(orientation_weight, "orientation_weight", zero=True)
+        self.orientation_tolerance = _positive(orientation_tolerance, "orientation_tolerance")
+        self.restarts = _count(restarts, "restarts", zero=True)
+        if not 0 < stall_ratio < 1:
+            raise ConfigError("stall_ratio must lie in (0, 1)", key="stall_ratio", value=stall_ratio)
+        self.stall_ratio = float(stall_ratio)
+        self.seed = seed
+        self.lower = tuple(float(j.lower) for j in arm.joints)
+        self.upper = tuple(float(j.upper) for j in arm.joints)
+        # per joint: origin translation, origin rotation (None when identity), axis, principal kind/sign
+        joints = []
+        for j in arm.joints:
+            rot = _rpy_rows(j.origin_rpy)
+            kind, sign = _principal(j.axis)
+            joints.append((tuple(map(float, j.origin_xyz)), rot, tuple(map(float, j.axis)), kind, sign))
+        self._joints = tuple(joints)
+        self._tool = tuple(map(float, arm.tool_xyz))
+        self._tool_rot = _rpy_rows(arm.tool_rpy)
+        # reach bound from the first pivot: a target farther than this cannot be reached
+        lengths = [math.dist((0, 0, 0), jt[0]) for jt in joints[1:]] + [math.dist((0, 0, 0), self._tool)]
+        self.reach = sum(lengths)
+        self.base_pivot = tuple(map(float, arm.joints[0].origin_xyz))
+        # scratch buffers, reused by every solve (a solver is not thread-safe)
+        self._px = [0.0] * n
+        self._py = [0.0] * n
+        self._pz = [0.0] * n
+        self._ax = [0.0] * n
+        self._ay = [0.0] * n
+        self._az = [0.0] * n
+
+    # ---------------------------------------------------------------------------------------------------------------
+    def _fk(self, q: list[float]) -> tuple[float, ...]:
+        """Forward pass over ``q``: fills the world pivots/axes buffers and returns 12 floats,
+        the tool point ``(x, y, z)`` then the tool rotation row by row."""
+        px, py, pz, ax, ay, az = self._px, self._py, self._pz, self._ax, self._ay, self._az
+        r00 = r11 = r22 = 1.0
+        r01 = r02 = r10 = r12 = r20 = r21 = 0.0
+        x = y = z = 0.0
+        j = 0
+        for (tx, ty, tz), rot, (kx, ky, kz), kind, sign in self._joints:
+            x += r00 * tx + r01 * ty + r02 * tz
+            y += r10 * tx + r11 * ty + r12 * tz
+            z += r20 * tx + r21 * ty + r22 * tz
+            px[j] = x
+            py[j] = y
+            pz[j] = z
+            if rot is not None:
+                r00, r01, r02, r10, r11, r12, r20, r21, r22 = _mul(r00, r01, r02, r10, r11, r12, r20, r21, r22, rot)
+            t = q[j]
+            c = _cos(t)
+            s = _sin(t) * sign
+            if kind == 0:  # about x: columns 1, 2 turn
+                ax[j] = sign * r00
+                ay[j] = sign * r10
+                az[j] = sign * r20
+                r01, r02 = r01 * c + r02 * s, r02 * c - r01 * s
+                r11, r12 = r11 * c + r12 * s, r12 * c - r11 * s
+                r21, r22 = r21 * c + r22 * s, r22 * c - r21 * s
+            elif kind == 1:  # about y: columns 2, 0 turn
+                ax[j] = sign * r01
+                ay[j] = sign * r11
+                az[j] = sign * r21
+                r02, r00 = r02 * c + r00 * s, r00 * c - r02 * s
+                r12, r10 = r12 * c + r10 * s, r10 * c - r12 * s
+                r22, r20 = r22 * c + r20 * s, r20 * c - r22 * s
+            elif kind == 2:  # about z: columns 0, 1 turn
+                ax[j] = sign * r02
+                ay[j] = sign * r12
+                az[j] = sign * r22
+                r00, r01 = r00 * c + r01 * s, r01 * c - r00 * s
+                r10, r11 = r10 * c + r11 * s, r11 * c - r10 * s
+                r20, r21 = r20 * c + r21 * s, r21 * c - r20 * s
+            else:  # general axis: Rodrigues
+                ax[j] = r00 * kx + r01 * ky + r02 * kz
+                ay[j] = r10 * kx + r11 * ky + r12 * kz
+                az[j] = r20 * kx + r21 * ky + r22 * kz
+                r00, r01, r02, r10, r11, r12, r20, r21, r22 = _mul(
+                    r00, r01, r02, r10, r11, r12, r20, r21, r22, _rodrigues(kx, ky, kz, t)
+                )
+            j += 1
+        tx, ty, tz = self._tool
+        x += r00 * tx + r01 * ty + r02 * tz
+        y += r10 * tx + r11 * ty + r12 * tz
+        z += r20 * tx + r21 * ty + r22 * tz
+        if self._tool_rot is not None:
+            r00, r01, r02, r10, r11, r12, r20, r21, r22 = _mul(
+                r00, r01, r02, r10, r11, r12, r20, r21, r22, self._tool_rot
+            )
+        return x, y, z, r00, r01, r02, r10, r11, r12, r20, r21, r22
+
+    def tool_point(self, q: Sequence[float] | np.ndarray) -> tuple[float, float, float]:
+        """The tool point ``(x, y, z)`` metres, base frame, of ``q`` ``(n_joints,)`` radians."""
+        return self._fk(list(map(float, q)))[:3]
+
+    # ---------------------------------------------------------------------------------------------------------------
+    def solve(
+        self,
+        target: Sequence[float] | np.ndarray,
+        q0: Sequence[float] | np.ndarray,
+        rotation: np.ndarray | None = None,
+        *,
+        tolerance: float | None = None,
+        max_iterations: int | None = None,
+    ) -> IKResult:
+        """Solve for the tool point at ``target`` ``(3,)`` metres, starting from ``q0`` ``(n_joints,)`` radians.
+
+        ``rotation``: optional ``(3, 3)`` target orientation of the tool frame (base frame).
+        ``tolerance``/``max_iterations`` override the solver's defaults for this call.
+        ``q0`` outside the limits is clipped first.  Raises ``ValueError`` for bad shapes or
+        non-finite input.
+        """
+        n = self.n
+        tx, ty, tz = _vec3(target, "target")
+        q = _joint_vector(q0, n)
+        lower, upper = self.lower, self.upper
+        q = [lo if v < lo else hi if v > hi else v for v, lo, hi in zip(q, lower, upper, strict=True)]
+        tol = self.tolerance if tolerance is None else _positive(tolerance, "tolerance")
+        budget = self.max_iterations if max_iterations is None else _count(max_iterations, "max_iterations", zero=True)
+        if rotation is not None:
+            return self._solve_pose(tx, ty, tz, _rotation(rotation), q, tol, budget)
+        tol2 = tol * tol
+
+        f = self._fk(q)
+        dx, dy, dz = f[0] - tx, f[1] - ty, f[2] - tz
+        err2 = dx * dx + dy * dy + dz * dz
+        if err2 <= tol2 or budget == 0:
+            return IKResult(np.array(q), math.sqrt(err2), 0, err2 <= tol2)
+
+        bx, by, bz = self.base_pivot
+        can_restart = math.dist((tx, ty, tz), (bx, by, bz)) < self.reach
+        best_q, best2 = q[:], err2
+        restarts = 0
+        rng: random.Random | None = None
+        prev2 = err2
+        sweeps = 0
+        sweep = self._sweep
+        stall = self.stall_ratio
+        while sweeps < budget:
+            sweeps += 1
+            err2 = sweep(q, tx, ty, tz, tol2)
+            if err2 < best2:
+                best_q, best2 = q[:], err2
+                if err2 <= tol2:
+                    break
+            if err2 > prev2 * stall:  # stalled: most often a joint pinned on a limit
+                if not can_restart or restarts >= self.restarts:
+                    if err2 >= prev2:  # no progress at all: more sweeps will not help
+                        break
+                else:
+                    restarts += 1
+                    if rng is None:
+                        rng = random.Random(self.seed)
+                    q = self._restart_seed(restarts, best_q, tx, ty, rng)
+                    f = self._fk(q)
+                    dx, dy, dz = f[0] - tx, f[1] - ty, f[2] - tz
+                    err2 = dx * dx + dy * dy + dz * dz
+            prev2 = err2
+        return IKResult(np.array(best_q), math.sqrt(best2), sweeps, best2 <= tol2, restarts=restarts)
+
+    def _restart_seed(self, k: int, best: list[float], tx: float, ty: float, rng: random.Random) -> list[float]:
+        """Seed ``k`` (1-based) of a restart: uniformly random inside the limits, waist kept from the best pose."""
+        q = [rng.uniform(lo, hi) for lo, hi in zip(self.lower, self.upper, strict=True)]
+        q[0] = best[0]
+        return q
+
+    def _sweep(self, q: list[float], tx: float, ty: float, tz: float, tol2: float) -> float:
+        """One tip-to-base sweep on ``q`` (in place); returns the squared distance after it."""
+        ex, ey, ez = self._fk(q)[:3]
+        px, py, pz, ax, ay, az = self._px, self._py, self._pz, self._ax, self._ay, self._az
+        lower, upper, w = self.lower, self.upper, self.weights
+        for j in range(self.n - 1, -1, -1):
+            x0, y0, z0 = px[j], py[j], pz[j]
+            ux, uy, uz = ex - x0, ey - y0, ez - z0
+            vx, vy, vz = tx - x0, ty - y0, tz - z0
+            kx, ky, kz = ax[j], ay[j], az[j]
+            au = kx * ux + ky * uy + kz * uz
+            dot = ux * vx + uy * vy + uz * vz - au * (kx * vx + ky * vy + kz * vz)
+            cx, cy, cz = ky * uz - kz * uy, kz * ux - kx * uz, kx * uy - ky * ux  # a x u
+            cross = cx * vx + cy * vy + cz * vz  # a . (u x v)
+            if dot * dot + cross * cross < _EPS2:
+                continue
+            old = q[j]
+            new = old + w[j] * _atan2(cross, dot)
+            if new < lower[j]:
+                new = lower[j]
+            elif new > upper[j]:
+                new = upper[j]
+            d = new - old
+            if d == 0.0:
+                continue
+            q[j] = new
+            c, s = _cos(d), _sin(d)
+            k = au * (1.0 - c)
+            ex = x0 + ux * c + cx * s + kx * k
+            ey = y0 + uy * c + cy * s + ky * k
+            ez = z0 + uz * c + cz * s + kz * k
+            dx, dy, dz = ex - tx, ey - ty, ez - tz
+            if dx * dx + dy * dy + dz * dz <= tol2:
+                break
+        dx, dy, dz = ex - tx, ey - ty, ez - tz
+        return dx * dx + dy * dy + dz * dz
+
+    # ---------------------------------------------------------------------------------------------------------------
+    def _solve_pose(self, tx, ty, tz, rot, q, tol, budget) -> IKResult:
+        """Position + orientation CCD (Wang & Chen), see the module docstring."""
+        rtol = self.orientation_tolerance
+        d = rot  # desired tool axes: columns of rot, as rows d[i] = column i
+        dcols = ((d[0][0], d[1][0], d[2][0]), (d[0][1], d[1][1], d[2][1]), (d[0][2], d[1][2], d[2][2]))
+
+        def errors(f):
+            dx, dy, dz = f[0] - tx, f[1] - ty, f[2] - tz
+            return math.sqrt(dx * dx + dy * dy + dz * dz), _angle(f[3:], d)
+
+        perr, oerr = errors(self._fk(q))
+        best_q, best = q[:], (perr, oerr)
+        sweeps = 0
+        scale = 1.0 / (self.reach * self.reach)
+        wo = self.orientation_weight
+        px, py, pz, ax, ay, az = self._px, self._py, self._pz, self._ax, self._ay, self._az
+        while not (perr <= tol and oerr <= rtol) and sweeps < budget:
+            sweeps += 1
+            f = self._fk(q)
+            ex, ey, ez = f[:3]
+            # current tool axes h_i: columns of the tool rotation
+            h = [[f[3], f[6], f[9]], [f[4], f[7], f[10]], [f[5], f[8], f[11]]]
+            for j in range(self.n - 1, -1, -1):
+                x0, y0, z0 = px[j], py[j], pz[j]
+                ux, uy, uz = ex - x0, ey - y0, ez - z0
+                vx, vy, vz = tx - x0, ty - y0, tz - z0
+                kx, ky, kz = ax[j], ay[j], az[j]
+                nu = math.sqrt(ux * ux + uy * uy + uz * uz)
+                nv = math.sqrt(vx * vx + vy * vy + vz * vz)
+                rho = min(nu, nv) / max(nu, nv, 1e-12)
+                wp = (1.0 + rho) * scale
+                au = kx * ux + ky * uy + kz * uz
+                av = kx * vx + ky * vy + kz * vz
+                k1 = wp * av * au
+                k2 = wp * (ux * vx + uy * vy + uz * vz)
+                k3 = wp * (kx * (uy * vz - uz * vy) + ky * (uz * vx - ux * vz) + kz * (ux * vy - uy * vx))
+                for (hx, hy, hz), (gx, gy, gz) in zip(h, dcols, strict=True):
+                    k1 += wo * (kx * gx + ky * gy + kz * gz) * (kx * hx + ky * hy + kz * hz)
+                    k2 += wo * (gx * hx + gy * hy + gz * hz)
+                    k3 += wo * (kx * (hy * gz - hz * gy) + ky * (hz * gx - hx * gz) + kz * (hx * gy - hy * gx))
+                phi = _atan2(k3, k2 - k1)
+                old = q[j]
+                new = min(max(old + self.weights[j] * phi, self.lower[j]), self.upper[j])
+                dq = new - old
+                if dq == 0.0:
+                    continue
+                q[j] = new
+                c, s = _cos(dq), _sin(dq)
+                ex, ey, ez = (x0 + r for r in _rotate(ux, uy, uz, kx, ky, kz, c, s))
+                h = [list(_rotate(hx, hy, hz, kx, ky, kz, c, s)) for hx, hy, hz in h]
+            perr, oerr = errors(self._fk(q))
+            if (perr <= tol) + (oerr <= rtol) > (best[0] <= tol) + (best[1] <= rtol) or (
+                perr + self.reach * oerr < best[0] + self.reach * best[1]
+            ):
+                best_q, best = q[:], (perr, oerr)
+        converged = best[0] <= tol and best[1] <= rtol
+        return IKResult(np.array(best_q), best[0], sweeps, converged, orientation_error=best[1])
+
+
+# -------------------------------------------------------------------------------------------------------------------
+def solve_ik(
+    arm: Arm,
+    target: Sequence[float] | np.ndarray,
+    q0: Sequence[float] | np.ndarray | None = None,
+    *,
+    rotation: np.ndarray | None = None,
+    tolerance: float = 1e-3,
+    max_iterations: int = 100,
+    weights: Weighting | str | Sequence[float] | np.ndarray = Weighting.UNIFORM,
+    weight_exponent: float = 2.0,
+    orientation_weight: float = 1.0,
+    orientation_tolerance: float = 1e-2,
+    restarts: int = 16,
+    seed: int = 0,
+) -> IKResult:
+    """Solve CCD IK on ``arm`` for ``target`` ``(3,)`` metres (base frame) from ``q0`` (default: home).
+
+    See :class:`CCDSolver` for the knobs and the module docstring for the method.  The
+    solver is built once per arm and set of knobs and cached on the arm, so calling this
+    every tick costs little more than ``CCDSolver.solve``.
+    """
+    key = ("ik", _freeze(weights), weight_exponent, orientation_weight, orientation_tolerance, restarts, seed)
+    solver = arm._cache.get(key)
+    if solver is None:
+        solver = arm._cache[key] = CCDSolver(
+            arm,
+            weights=weights,
+            weight_exponent=weight_exponent,
+            orientation_weight=orientation_weight,
+            orientation_tolerance=orientation_tolerance,
+            restarts=restarts,
+            seed=seed,
+        )
+    if q0 is None:
+        q0 = arm.home_pose
+    return solver.solve(target, q0, rotation, tolerance=tolerance, max_iterations=max_iterations)
+
+
+# -- float helpers ------------------------------------------------------------------------------------------------
+def _freeze(weights: object) -> object:
+    if isinstance(weights, str | Weighting):
+        return Weighting(weights) if isinstance(weights, str) and weights in Weighting._value2member_map_ else weights
+    return tuple(np.asarray(weights, dtype=np.float64).ravel().tolist())
+
+
+def _rpy_rows(rpy: Sequence[float]) -> tuple[tuple[float, ...], ...] | None:
+    """Rows of the URDF rpy rotation, or None for the identity (the common case, skipped in the loop)."""
+    r, p, y = (float(v) for v in rpy)
+    if r == p == y == 0.0:
+        return None
+    cr, sr, cp, sp, cy, sy = _cos(r), _sin(r), _cos(p), _sin(p), _cos(y), _sin(y)
+    return (
+        (cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
+        (sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
+        (-sp, cp * sr, cp * cr),
+    )
+
+
+def _rodrigues(x: float, y: float, z: float, t: float) -> tuple[tuple[float, ...], ...]:
+    c, s = _cos(t), _sin(t)
+    k = 1.0 - c
+    return (
+        (k * x * x + c, k * x * y - s * z, k * x * z + s * y),
+        (k * x * y + s * z, k * y * y + c, k * y * z - s * x),
+        (k * x * z - s * y, k * y * z + s * x, k * z * z + c),
+    )
+
+
+def _mul(r00, r01, r02, r10, r11, r12, r20, r21, r22, o) -> tuple[float, ...]:
+    """Row-major ``R @ O`` with ``R`` as 9 floats and ``O`` as rows."""
+    (o00, o01, o02), (o10, o11, o12), (o20, o21, o22) = o
+    return (
+        r00 * o00 + r01 * o10 + r02 * o20, r00 * o01 + r01 * o11 + r02 * o21, r00 * o02 + r01 * o12 + r02 * o22,
+        r10 * o00 + r11 * o10 + r12 * o20, r10 * o01 + r11 * o11 + r12 * o21, r10 * o02 + r11 * o12 + r12 * o22,
+        r20 * o00 + r21 * o10 + r22 * o20, r20 * o01 + r21 * o11 + r22 * o21, r20 * o02 + r21 * o12 + r22 * o22,
+    )  # fmt: skip
+
+
+def _rotate(ux, uy, uz, kx, ky, kz, c, s) -> tuple[float, float, float]:
+    """``u`` rotated about unit ``k`` by the angle of cosine ``c``, sine ``s`` (Rodrigues)."""
+    ku = (kx * ux + ky * uy + kz * uz) * (1.0 - c)
+    return (
+        ux * c + (ky * uz - kz * uy) * s + kx * ku,
+        uy * c + (kz * ux - kx * uz) * s + ky * ku,
+        uz * c + (kx * uy - ky * ux) * s + kz * ku,
+    )
+
+
+def _angle(f: Sequence[float], d: Sequence[Sequence[float]]) -> float:
+    """Angle (rad) between the rotation with rows ``f[0:3], f[3:6], f[6:9]`` and rows ``d``: acos((tr(F^T D)-1)/2)."""
+    tr = sum(f[3 * i + k] * d[i][k] for i in range(3) for k in range(3))
+    return math.acos(min(1.0, max(-1.0, (tr - 1.0) * 0.5)))
+
+
+def _vec3(value: Sequence[float] | np.ndarray, what: str) -> tuple[float, float, float]:
+    v = np.asarray(value, dtype=np.float64)
+    if v.shape != (3,):
+        raise ValueError(f"Expected {what} of shape (3,), got {v.shape}")
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f"Expected a finite {what}, got {v.tolist()}")
+    x, y, z = v.tolist()
+    return x, y, z
+
+
+def _joint_vector(value: Sequence[float] | np.ndarray, n: int) -> list[float]:
+    if isinstance(value, np.ndarray) and value.shape == (n,) and value.dtype == np.float64:
+        q = value.tolist()
+    else:
+        v = np.asarray(value, dtype=np.float64)
+        if v.shape != (n,):
+            raise ValueError(f"Expected q0 of shape ({n},), got {v.shape}")
+        q = v.tolist()
+    for x in q:
+        if not math.isfinite(x):
+            raise ValueError(f"Expected finite joint angles q0, got {q}")
+    return q
+
+
+def _rotation(value: np.ndarray) -> tuple[tuple[float, ...], ...]:
+    r = np.asarray(value, dtype=np.float64)
+    if r.shape != (3, 3):
+        raise ValueError(f"Expected rotation of shape (3, 3), got {r.shape}")
+    if not np.all(np.isfinite(r)) or not np.allclose(r @ r.T, np.eye(3), atol=1e-6) or np.linalg.det(r) < 0:
+        raise ValueError("Expected rotation to be a proper rotation matrix (orthonormal, det +1)")
+    return tuple(tuple(row) for row in r.tolist())
+
+
+def _positive(value: float, key: str, *, zero: bool = False) -> float:
+    ok = isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+    if not ok or value < 0 or (value == 0 and not zero):
+        raise ConfigError(f"{key} must be a finite number {'>=' if zero else '>'} 0", key=key, value=value)
+    return float(value)
+
+
+def _count(value: int, key: str, *, zero: bool = False) -> int:
+    if not isinstance(value, int) or isinstance(value, bool) or value < (0 if zero else 1):
+        raise ConfigError(f"{key} must be an integer {'>=' if zero else '>'} 0", key=key, value=value)
+    return value
