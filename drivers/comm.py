@@ -1,0 +1,324 @@
+"""Protocol 2.0 transactions on dynamixel-sdk with bounded retries and errors that name the servos.
+
+:class:`Link` wraps one open port and the SDK's ``Protocol2PacketHandler``.  Every transaction is the SDK's
+own packet code; what this module adds is what the SDK leaves to its callers:
+
+* a failed transaction is retried ``retries`` times, then raised as a :class:`~retarget.errors.BusError`
+  naming the servo IDs that did not answer (never a value of 0 for a failed read);
+* status error bytes are decoded into names ("access error"); the Alert bit is collected in
+  :attr:`Link.alerts` for the caller to read Hardware Error Status;
+* sync reads collect the status packets by ID, so a missing servo is named, not just "a timeout".
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+
+from dynamixel_sdk import COMM_SUCCESS, PacketHandler, PortHandler
+from dynamixel_sdk.robotis_def import (
+    COMM_NOT_AVAILABLE,
+    COMM_PORT_BUSY,
+    COMM_RX_CORRUPT,
+    COMM_RX_FAIL,
+    COMM_RX_TIMEOUT,
+    COMM_TX_ERROR,
+    COMM_TX_FAIL,
+)
+
+from drivers.control_table import ALERT_BIT, BROADCAST_ID, Register, StatusError
+from retarget.errors import BusError
+
+log = logging.getLogger(__name__)
+
+# Status packet layout (after byte-unstuffing): FF FF FD 00 ID LEN_L LEN_H 0x55 ERR PARAMS... CRC_L CRC_H
+_PKT_ID = 4
+_PKT_LEN_L = 5
+_PKT_LEN_H = 6
+_PKT_INSTRUCTION = 7
+_PKT_ERROR = 8
+_PKT_PARAMS = 9
+_INST_STATUS = 0x55
+
+COMM_RESULT_NAMES: Mapping[int, str] = {
+    COMM_PORT_BUSY: "port busy",
+    COMM_TX_FAIL: "failed to send the instruction packet",
+    COMM_RX_FAIL: "failed to receive a status packet",
+    COMM_TX_ERROR: "bad instruction packet",
+    COMM_RX_TIMEOUT: "no status packet",
+    COMM_RX_CORRUPT: "corrupt status packet",
+    COMM_NOT_AVAILABLE: "not available",
+}
+
+STATUS_ERROR_NAMES: Mapping[int, str] = {
+    StatusError.RESULT_FAIL: "result fail",
+    StatusError.INSTRUCTION: "instruction error",
+    StatusError.CRC: "CRC error",
+    StatusError.DATA_RANGE: "data range error",
+    StatusError.DATA_LENGTH: "data length error",
+    StatusError.DATA_LIMIT: "data limit error",
+    StatusError.ACCESS: "access error",
+}
+
+
+def comm_result_name(result: int) -> str:
+    """The SDK's ``COMM_*`` result as a short phrase ("no status packet")."""
+    return COMM_RESULT_NAMES.get(result, f"communication result {result}")
+
+
+def status_error_name(error: int) -> str | None:
+    """The error number of a status ERR byte as a name, ignoring the Alert bit; None when there is none."""
+    number = error & ~ALERT_BIT
+    if number == 0:
+        return None
+    return STATUS_ERROR_NAMES.get(number, f"status error {number}")
+
+
+@dataclass(frozen=True)
+class Reply:
+    """One servo's status packet: its ERR byte and the data bytes it returned."""
+
+    id: int
+    error: int
+    data: bytes
+
+    @property
+    def alert(self) -> bool:
+        return bool(self.error & ALERT_BIT)
+
+
+@dataclass(frozen=True)
+class PingReply:
+    id: int
+    model_number: int
+    firmware: int
+
+
+class Link:
+    """An open port plus the Protocol 2.0 packet handler, with retries and counters.
+
+    ``retries``: how many times a failed transaction is repeated before it is raised (0 = no retry).
+    """
+
+    def __init__(self, port: PortHandler, *, retries: int = 3):
+        if retries < 0:
+            raise ValueError(f"Expected retries >= 0, got {retries}")
+        self.port = port
+        self.ph = PacketHandler(2.0)
+        self.retries = retries
+        self.retry_count = 0  #: transactions repeated after a failure
+        self.error_count = 0  #: failures raised after the retries ran out
+        self.alerts: set[int] = set()  #: IDs whose status packets had the Alert bit, until the caller clears it
+        self.fast_failures = 0  #: consecutive FAST_SYNC_READs that failed as a whole
+
+    @property
+    def baud(self) -> int:
+        return int(self.port.getBaudRate())
+
+    def release(self) -> None:
+        """Forget a transaction cut short (Ctrl-C inside the SDK leaves the port marked busy) and drop stale bytes."""
+        self.port.is_using = False
+        try:
+            self.port.clearPort()
+        except Exception as exc:  # noqa: BLE001 - best effort before a shutdown sequence
+            log.debug("clearPort failed: %s", exc)
+
+    def _note(self, reply: Reply) -> Reply:
+        if reply.alert:
+            self.alerts.add(reply.id)
+        return reply
+
+    def _fail(self, message: str, ids: Iterable[int]) -> BusError:
+        self.error_count += 1
+        return BusError(message, ids=sorted(ids))
+
+    # ------------------------------------------------------------------ single servo
+
+    def ping_once(self, dxl_id: int) -> PingReply | None:
+        """One PING; None when no status packet came back (the SDK's own ``ping``, plus the firmware byte)."""
+        tx = [0] * 10
+        tx[_PKT_ID] = dxl_id
+        tx[_PKT_LEN_L] = 3
+        tx[_PKT_INSTRUCTION] = 0x01
+        rx, result, error = self.ph.txRxPacket(self.port, tx)
+        if result != COMM_SUCCESS:
+            return None
+        self._note(Reply(dxl_id, error, b""))
+        return PingReply(dxl_id, rx[_PKT_PARAMS] | (rx[_PKT_PARAMS + 1] << 8), rx[_PKT_PARAMS + 2])
+
+    def ping(self, dxl_id: int) -> PingReply | None:
+        """PING with retries; None when the servo never answered."""
+        for attempt in range(self.retries + 1):
+            if attempt:
+                self.retry_count += 1
+            reply = self.ping_once(dxl_id)
+            if reply is not None:
+                return reply
+        return None
+
+    def read(self, dxl_id: int, address: int, length: int, *, what: str = "") -> Reply:
+        """READ ``length`` bytes at ``address`` with retries; BusError naming the servo when it fails."""
+        last = ""
+        for attempt in range(self.retries + 1):
+            if attempt:
+                self.retry_count += 1
+            data, result, error = self.ph.readTxRx(self.port, dxl_id, address, length)
+            if result == COMM_SUCCESS and len(data) == length:
+                reply = self._note(Reply(dxl_id, error, bytes(data)))
+                name = status_error_name(error)
+                if name is None:
+                    return reply
+                last = name
+                continue
+            last = comm_result_name(result) if result != COMM_SUCCESS else "short status packet"
+        raise self._fail(f"{last} reading {what or f'address {address}'} at {self.baud} baud", [dxl_id])
+
+    def read_register(self, dxl_id: int, reg: Register) -> int:
+        return reg.decode(self.read(dxl_id, reg.address, reg.size, what=reg.name).data)
+
+    def write(self, dxl_id: int, address: int, data: bytes, *, what: str = "") -> Reply:
+        """WRITE with retries; BusError naming the servo and the status error ("access error") when it fails."""
+        last = ""
+        for attempt in range(self.retries + 1):
+            if attempt:
+                self.retry_count += 1
+            result, error = self.ph.writeTxRx(self.port, dxl_id, address, len(data), list(data))
+            if result == COMM_SUCCESS:
+                reply = self._note(Reply(dxl_id, error, b""))
+                name = status_error_name(error)
+                if name is None:
+                    return reply
+                if error & ~ALERT_BIT in (StatusError.ACCESS, StatusError.DATA_RANGE, StatusError.DATA_LIMIT):
+                    last = name  # the servo refused the value: repeating it cannot help
+                    break
+                last = name
+                continue
+            last = comm_result_name(result)
+        raise self._fail(f"{last} writing {what or f'address {address}'}", [dxl_id])
+
+    def write_register(self, dxl_id: int, reg: Register, value: int) -> None:
+        self.write(dxl_id, reg.address, reg.encode(int(value)), what=f"{reg.name} = {int(value)}")
+
+    def reboot(self, dxl_id: int) -> None:
+        for attempt in range(self.retries + 1):
+            if attempt:
+                self.retry_count += 1
+            result, error = self.ph.reboot(self.port, dxl_id)
+            if result == COMM_SUCCESS:
+                return
+        raise self._fail(f"{comm_result_name(result)} to REBOOT", [dxl_id])
+
+    # ------------------------------------------------------------------ groups
+
+    def sync_write(self, address: int, size: int, values: Mapping[int, bytes]) -> None:
+        """One SYNC_WRITE of ``size`` bytes per servo (no status packets come back)."""
+        param: list[int] = []
+        for dxl_id, data in values.items():
+            param.append(dxl_id)
+            param.extend(data)
+        result = self.ph.syncWriteTxOnly(self.port, address, size, param, len(param))
+        if result != COMM_SUCCESS:
+            raise self._fail(f"{comm_result_name(result)} (sync write at address {address})", values)
+
+    def _collect(self, lengths: Mapping[int, int]) -> dict[int, Reply]:
+        """Status packets after a SYNC_READ or BULK_READ, matched by ID until all came or the timeout passed."""
+        replies: dict[int, Reply] = {}
+        while len(replies) < len(lengths):
+            rx, result = self.ph.rxPacket(self.port, False)
+            if result != COMM_SUCCESS:
+                break
+            dxl_id = rx[_PKT_ID]
+            length = lengths.get(dxl_id)
+            if length is None or rx[_PKT_INSTRUCTION] != _INST_STATUS or dxl_id in replies:
+                continue
+            n_params = (rx[_PKT_LEN_L] | (rx[_PKT_LEN_H] << 8)) - 4  # minus INST, ERR, CRC16
+            if n_params != length:
+                log.debug("servo %d answered %d bytes instead of %d", dxl_id, n_params, length)
+                continue
+            replies[dxl_id] = self._note(Reply(dxl_id, rx[_PKT_ERROR], bytes(rx[_PKT_PARAMS : _PKT_PARAMS + length])))
+        self.port.is_using = False
+        return replies
+
+    def sync_read_once(self, ids: Sequence[int], address: int, length: int) -> dict[int, Reply]:
+        """One SYNC_READ; the replies that came, by ID (missing IDs are absent)."""
+        result = self.ph.syncReadTx(self.port, address, length, list(ids), len(ids), False)
+        if result != COMM_SUCCESS:
+            self.port.is_using = False
+            return {}
+        return self._collect(dict.fromkeys(ids, length))
+
+    def fast_sync_read_once(self, ids: Sequence[int], address: int, length: int) -> dict[int, Reply] | None:
+        """One FAST_SYNC_READ (a single status packet for all); None when it failed as a whole."""
+        result = self.ph.syncReadTx(self.port, address, length, list(ids), len(ids), True)
+        if result != COMM_SUCCESS:
+            self.port.is_using = False
+            return None
+        raw, result, _ = self.ph.fastSyncReadRx(self.port, BROADCAST_ID, (length + 4) * len(ids))
+        if result != COMM_SUCCESS or len(raw) < (length + 4) * len(ids) - 2:
+            return None
+        replies: dict[int, Reply] = {}
+        for k in range(len(ids)):  # slots of ERR ID DATA[length] CRC16 (the last CRC is the packet's)
+            i = k * (length + 4)
+            dxl_id = raw[i + 1]
+            if dxl_id not in ids:
+                return None
+            replies[dxl_id] = self._note(Reply(dxl_id, raw[i], bytes(raw[i + 2 : i + 2 + length])))
+        return replies
+
+    def bulk_read_once(self, requests: Mapping[int, tuple[int, int]]) -> dict[int, Reply]:
+        """One BULK_READ of ``{id: (address, length)}``; the replies that came, by ID."""
+        param: list[int] = []
+        for dxl_id, (address, length) in requests.items():
+            param += [dxl_id, address & 0xFF, address >> 8, length & 0xFF, length >> 8]
+        result = self.ph.bulkReadTx(self.port, param, len(param), False)
+        if result != COMM_SUCCESS:
+            self.port.is_using = False
+            return {}
+        return self._collect({dxl_id: length for dxl_id, (_, length) in requests.items()})
+
+    def group_read(
+        self,
+        requests: Mapping[int, tuple[int, int]],
+        *,
+        fast: bool = False,
+        what: str = "",
+    ) -> dict[int, Reply]:
+        """Read every servo of ``{id: (address, length)}`` in one group transaction, with retries.
+
+        Uses SYNC_READ when all servos share the address and length (FAST_SYNC_READ first when ``fast``; a
+        failed fast read is repeated as a plain one, which tells which servo is silent), BULK_READ otherwise.
+        Raises BusError naming the servos that never answered, or that answered with a status error.
+        """
+        ids = list(requests)
+        shapes = set(requests.values())
+        same = len(shapes) == 1
+        address, length = next(iter(shapes)) if same else (0, 0)
+        use_fast = same and fast
+        missing: set[int] = set(ids)
+        errors: dict[int, str] = {}
+        for attempt in range(self.retries + 1):
+            if attempt:
+                self.retry_count += 1
+            if use_fast:
+                got = self.fast_sync_read_once(ids, address, length)
+                if got is None:  # one packet for all: repeat as a plain read, which names the silent servo
+                    self.fast_failures += 1
+                    self.retry_count += 1
+                    use_fast = False
+                    got = self.sync_read_once(ids, address, length)
+                else:
+                    self.fast_failures = 0
+            elif same:
+                got = self.sync_read_once(ids, address, length)
+            else:
+                got = self.bulk_read_once(requests)
+            errors = {i: name for i, r in got.items() if (name := status_error_name(r.error)) is not None}
+            missing = set(ids) - set(got)
+            if not missing and not errors:
+                return got
+        what = what or "a group read"
+        if missing:
+            raise self._fail(f"no status packet ({what}) at {self.baud} baud after {self.retries + 1} tries", missing)
+        detail = ", ".join(f"{i}: {name}" for i, name in sorted(errors.items()))
+        raise self._fail(f"status error ({what}): {detail}", errors)

@@ -1,0 +1,614 @@
+"""The Dynamixel servo bus of one arm, on dynamixel-sdk: :class:`DynamixelBus` implements ``retarget.bus.Bus``.
+
+Lifecycle (explicit, also as a context manager)::
+
+    with DynamixelBus(retarget.load_arm("wx250s"), "/dev/ttyUSB0") as bus:   # connect(): check, configure, torque on
+        q = bus.read_positions()                                            # (6,) rad
+        bus.write_goals(q_next)                                             # clamped, step-limited, one sync write
+    # close(): stop goals, shutdown per ShutdownMode (rest pose, then torque off), release the port
+
+connect():
+  1. open the port (any pyserial URL) at the arm's baud; on Linux check the FTDI latency timer;
+  2. PING every configured ID (joints, shadows, gripper), compare model numbers with the arm description and
+     raise ONE BusError naming every missing ID and wrong model, before anything is written;
+  3. configure each servo with torque off (EEPROM is only writable then), writing only values that differ:
+     Operating Mode = position, Drive Mode (bit 0 = the servo's direction, so shadows mirror their primary;
+     bit 2 = time-based profile when chosen), Homing Offset = 0, Max/Min Position Limit from the joint limits
+     (the servo's own second line of defence), Velocity Limit, Return Delay Time; then Profile Acceleration and
+     Profile Velocity (RAM);
+  4. set each Goal Position to the present position (so enabling torque does not jump), then torque on.
+
+Direction is applied by the servo (Drive Mode bit 0), as Interbotix does: every servo of a joint gets the same
+register value ``2048 + offset + q / RAD_PER_TICK`` in the same SYNC_WRITE and a reversed servo turns its shaft
+the other way.  Tick limits are therefore computed in that register space for every servo.
+"""
+
+from __future__ import annotations
+
+import enum
+import logging
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from types import TracebackType
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from drivers import units
+from drivers.comm import Link
+from drivers.control_table import DriveMode, Model, OperatingMode, hardware_error_names
+from drivers.control_table import model as lookup_model
+from drivers.latency import check_latency_timer
+from drivers.port import open_port
+from retarget.bus import BusStatus, ShutdownMode
+from retarget.clock import Clock, MonotonicClock
+from retarget.errors import BusError, ConfigError
+
+if TYPE_CHECKING:
+    from retarget.arm import Arm
+
+log = logging.getLogger(__name__)
+
+#: EEPROM block read once per servo at connect: Return Delay Time (9) .. Min Position Limit (52..55).
+_EEPROM_START = 9
+_EEPROM_END = 56
+
+
+class Profile(enum.Enum):
+    """How the servo shapes each move toward a new goal (Drive Mode bit 2)."""
+
+    VELOCITY = "velocity"  #: Profile Velocity/Acceleration are a rate cap (0.229 rpm, 214.577 rev/min^2)
+    TIME = "time"  #: Profile Velocity/Acceleration are the move's duration and ramp time (ms)
+
+
+@dataclass(frozen=True)
+class ServoPlan:
+    """One servo of the arm as the bus drives it: where it sits and what it is configured to."""
+
+    id: int
+    model: Model
+    role: str  #: "primary", "shadow" or "gripper"
+    joint: int  #: index into the arm's joints; -1 for the gripper
+    offset: int  #: ticks: the joint's 0 rad is at 2048 + offset
+    direction: int  #: +1 or -1, written to Drive Mode bit 0
+    min_tick: int  #: Min Position Limit
+    max_tick: int  #: Max Position Limit
+
+
+def _tick_limits(lower: float, upper: float, offset: int, *, where: str) -> tuple[int, int]:
+    lo = math.ceil(units.CENTER_TICK + offset + lower / units.RAD_PER_TICK - 1e-6)
+    hi = math.floor(units.CENTER_TICK + offset + upper / units.RAD_PER_TICK + 1e-6)
+    lo, hi = max(lo, units.MIN_TICK), min(hi, units.MAX_TICK)
+    if lo >= hi:
+        raise ConfigError(
+            "joint limits do not fit the servo's single-turn range 0..4095 ticks", key=where, value=(lower, upper)
+        )
+    return lo, hi
+
+
+def plan_servos(arm: Arm) -> tuple[ServoPlan, ...]:
+    """Every servo of ``arm`` (joints in order, primary then shadows, then the gripper) with its tick limits."""
+    plans: list[ServoPlan] = []
+    for j, joint in enumerate(arm.joints):
+        for k, servo in enumerate(joint.servos):
+            where = f"joints[{j}].servos[{k}]"
+            try:
+                model = lookup_model(servo.model)
+            except KeyError as exc:
+                raise ConfigError(str(exc.args[0]), path=arm.source, key=f"{where}.model", value=servo.model) from exc
+            lo, hi = _tick_limits(joint.lower, joint.upper, servo.offset, where=f"joints[{j}].limits")
+            role = "primary" if k == 0 else "shadow"
+            plans.append(ServoPlan(servo.id, model, role, j, servo.offset, servo.direction, lo, hi))
+    if arm.gripper is not None:
+        g = arm.gripper
+        try:
+            model = lookup_model(g.servo.model)
+        except KeyError as exc:
+            key = "gripper.servo.model"
+            raise ConfigError(str(exc.args[0]), path=arm.source, key=key, value=g.servo.model) from exc
+        lo, hi = _tick_limits(g.lower, g.upper, g.servo.offset, where="gripper.limits")
+        plans.append(ServoPlan(g.servo.id, model, "gripper", -1, g.servo.offset, g.servo.direction, lo, hi))
+    seen: set[int] = set()
+    for p in plans:
+        if p.id in seen:
+            raise ConfigError("servo ID used twice", path=arm.source, key="servos", value=p.id)
+        seen.add(p.id)
+    return tuple(plans)
+
+
+class DynamixelBus:
+    """The servos of one arm on one Dynamixel bus.  See the module docstring for what connect() does.
+
+    Arguments (all tuning knobs keyword-only):
+        arm: the arm description (``retarget.load_arm``), or the name of a bundled one.
+        port: a device path or pyserial URL (``/dev/ttyUSB0``, ``COM3``, ``socket://h:p``, ``sim://wx250s``).
+        baud: the bus baud rate; default: the arm's.
+        shutdown: what close() does with the arm (HOLD, REST then torque off, OFF).
+        retries: repeats of a failed transaction before it raises (per tick).
+        return_delay_us: Return Delay Time written at connect (0..508 us, 2 us steps; servo default 500).
+        profile: velocity- or time-based servo profile.
+        profile_velocity: rad/s cap of the servo's own profile (VELOCITY); default each joint's max velocity.
+        profile_acceleration: rad/s^2 (VELOCITY); default 0 = unlimited.
+        profile_time: seconds per move (TIME); default ``dt`` or 0.1 s.  The ramp is a quarter of it.
+        dt: the control tick period in seconds; when set, write_goals limits every joint's step per call to
+            ``max_velocity * dt`` (from the arm description).  ``step_limit=False`` turns that off.
+        rest_speed: rad/s of the move to the rest pose on close (REST).
+        rest_timeout: seconds to wait for the rest pose before torque goes off anyway.
+        rest_tolerance: rad; the rest pose counts as reached when every joint is this close.
+        recover: on a hardware error, reboot the servo and configure it again instead of raising.
+        fast_read: FAST_SYNC_READ for positions: True, False, or None = when every servo's firmware has it.
+        check_latency: check (and lower) the FTDI latency timer of a /dev/ttyUSBn port.
+        clock: the clock for waits (the REST move); a shared ``VirtualClock`` in tests.
+    """
+
+    def __init__(
+        self,
+        arm: Arm | str,
+        port: str = "sim://wx250s",
+        *,
+        baud: int | None = None,
+        shutdown: ShutdownMode | str = ShutdownMode.REST,
+        retries: int = 3,
+        return_delay_us: int = 0,
+        profile: Profile | str = Profile.VELOCITY,
+        profile_velocity: float | None = None,
+        profile_acceleration: float | None = None,
+        profile_time: float | None = None,
+        dt: float | None = None,
+        step_limit: bool = True,
+        rest_speed: float = 0.5,
+        rest_timeout: float = 10.0,
+        rest_tolerance: float = 0.05,
+        recover: bool = False,
+        fast_read: bool | None = None,
+        check_latency: bool = True,
+        clock: Clock | None = None,
+    ):
+        if isinstance(arm, str):
+            from retarget.arm_config import load_arm
+
+            arm = load_arm(arm)
+        self.arm = arm
+        self.port_name = port
+        self.baud = int(baud if baud is not None else arm.baud)
+        self.shutdown_mode = ShutdownMode(shutdown)
+        self.profile = Profile(profile)
+        if retries < 0:
+            raise ValueError(f"Expected retries >= 0, got {retries}")
+        if not 0 <= return_delay_us <= 508:
+            raise ValueError(f"Expected return_delay_us in 0..508, got {return_delay_us}")
+        if dt is not None and not dt > 0:
+            raise ValueError(f"Expected dt > 0 seconds, got {dt}")
+        if not rest_speed > 0:
+            raise ValueError(f"Expected rest_speed > 0 rad/s, got {rest_speed}")
+        self.retries = retries
+        self.return_delay_us = return_delay_us
+        self.profile_velocity = profile_velocity
+        self.profile_acceleration = profile_acceleration
+        self.profile_time = profile_time
+        self.dt = dt
+        self.step_limit = step_limit
+        self.rest_speed = rest_speed
+        self.rest_timeout = rest_timeout
+        self.rest_tolerance = rest_tolerance
+        self.recover = recover
+        self.fast_read = fast_read
+        self.check_latency = check_latency
+        self.clock: Clock = clock if clock is not None else MonotonicClock()
+
+        self.servos = plan_servos(arm)
+        self._joint_servos = tuple(s for s in self.servos if s.role != "gripper")
+        self._gripper = next((s for s in self.servos if s.role == "gripper"), None)
+        self._primary_index = np.array(
+            [next(i for i, s in enumerate(self._joint_servos) if s.joint == j and s.role == "primary")
+             for j in range(arm.n_joints)]
+        )  # fmt: skip
+        js = self._joint_servos
+        self._servo_joint = np.array([s.joint for s in js])
+        self._servo_offset = np.array([s.offset for s in js], dtype=np.int64)
+        self._servo_min = np.array([s.min_tick for s in js], dtype=np.int64)
+        self._servo_max = np.array([s.max_tick for s in js], dtype=np.int64)
+        # the joint range every servo of the joint can reach: the intersection over its servos
+        lower = np.full(arm.n_joints, -np.inf)
+        upper = np.full(arm.n_joints, np.inf)
+        for s in js:
+            lower[s.joint] = max(lower[s.joint], float(units.ticks_to_rad(s.min_tick, offset=s.offset)))
+            upper[s.joint] = min(upper[s.joint], float(units.ticks_to_rad(s.max_tick, offset=s.offset)))
+        self.lower = np.maximum(lower, arm.lower)  #: (n_joints,) rad, the clamp of write_goals
+        self.upper = np.minimum(upper, arm.upper)
+        self.max_step = arm.max_velocity * dt if dt is not None and step_limit else None
+
+        self._link: Link | None = None
+        self._torque = False
+        self._faulted: str | None = None
+        self._last_goal: np.ndarray | None = None
+        self._ticks = 0
+        self._hardware_errors: dict[int, tuple[str, ...]] = {}
+        self._firmware: dict[int, int] = {}
+        self._use_fast = False
+
+    # ------------------------------------------------------------------ Bus protocol
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return self.arm.joint_names
+
+    @property
+    def connected(self) -> bool:
+        return self._link is not None
+
+    @property
+    def link(self) -> Link:
+        if self._link is None:
+            raise BusError(f"not connected (port {self.port_name}): call connect() first")
+        return self._link
+
+    def __enter__(self) -> DynamixelBus:
+        if not self.connected:
+            self.connect()
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None):
+        self.close()
+
+    def __repr__(self) -> str:
+        state = "connected" if self.connected else "closed"
+        return f"DynamixelBus({self.arm.name!r}, {self.port_name!r}, baud={self.baud}, {state})"
+
+    def connect(self) -> None:
+        """Open, check every servo, configure them with torque off, then enable torque.  See the module docstring."""
+        if self.connected:
+            return
+        port = open_port(self.port_name, self.baud)
+        self._link = Link(port, retries=self.retries)
+        self._faulted = None
+        self._hardware_errors = {}
+        self._ticks = 0
+        try:
+            if self.check_latency:
+                check_latency_timer(self.port_name)
+            self._check_servos()
+            for s in self.servos:
+                self._configure(s)
+            self.set_torque(True)
+        except BaseException:
+            # nothing was enabled unless set_torque ran; either way leave the servos limp and the port free
+            torque = self._torque
+            try:
+                if torque:
+                    self._torque_off_all()
+            finally:
+                port.closePort()
+                self._link = None
+                self._torque = False
+            raise
+        log.info(
+            "connected %s on %s at %d baud (%d servos)", self.arm.name, self.port_name, self.baud, len(self.servos)
+        )
+
+    def close(self) -> None:
+        """Stop goals, run the shutdown sequence (HOLD / REST then torque off / OFF), release the port.  Idempotent."""
+        link = self._link
+        if link is None:
+            return
+        link.release()  # a Ctrl-C inside the SDK leaves the port marked busy
+        try:
+            if self._torque and self.shutdown_mode is ShutdownMode.REST:
+                try:
+                    self._move_to_rest()
+                except (BusError, OSError) as exc:
+                    log.error("could not move %s to its rest pose: %s", self.arm.name, exc)
+            if self.shutdown_mode is not ShutdownMode.HOLD:
+                self._torque_off_all()
+        finally:
+            link.port.closePort()
+            self._link = None
+            self._torque = False
+            self._last_goal = None
+            log.info("closed %s (%s)", self.port_name, self.shutdown_mode.value)
+
+    def status(self) -> BusStatus:
+        link = self._link
+        return BusStatus(
+            connected=link is not None,
+            ticks=self._ticks,
+            retries=0 if link is None else link.retry_count,
+            errors=0 if link is None else link.error_count,
+            hardware_errors=dict(self._hardware_errors),
+        )
+
+    def read_positions(self) -> np.ndarray:
+        """Present joint angles ``(n_joints,) float64`` radians, from the primary servos.
+
+        One SYNC_READ (FAST_SYNC_READ when available) of every joint servo (shadows too, so their alerts are
+        seen), retried ``retries`` times; BusError
+        naming the silent servos after that.  A servo with its Alert bit set is reported by its hardware error
+        names (or rebooted and configured again with ``recover=True``).
+        """
+        ticks = self._read_joint_ticks()
+        self._ticks += 1
+        q = units.ticks_to_rad(ticks[self._primary_index], offset=self._servo_offset[self._primary_index])
+        return q
+
+    def write_goals(self, q: np.ndarray) -> None:
+        """Send goal angles ``(n_joints,) float64`` radians in ONE SYNC_WRITE to every joint servo (shadows included).
+
+        Each goal is clamped to the joint limits first, then (with ``dt``) to ``max_velocity * dt`` from the
+        previous goal, then encoded per servo and clipped to that servo's position limits.
+        """
+        link = self._require_active()
+        q = np.asarray(q, dtype=np.float64)
+        if q.shape != (self.arm.n_joints,):
+            raise ValueError(f"Expected goals of shape ({self.arm.n_joints},) in radians, got shape {q.shape}")
+        if not np.all(np.isfinite(q)):
+            raise ValueError(f"Expected finite goals in radians, got {q}")
+        goal = np.clip(q, self.lower, self.upper)
+        if self.max_step is not None and self._last_goal is not None:
+            goal = self._last_goal + np.clip(goal - self._last_goal, -self.max_step, self.max_step)
+        self._send_goal_ticks(link, goal)
+        self._last_goal = goal
+
+    def set_torque(self, enabled: bool) -> None:
+        """Torque on or off for every servo of the arm (gripper included).
+
+        Turning it on first sets every Goal Position to the present position, so nothing jumps.
+        """
+        link = self.link
+        if not enabled:
+            self._torque_off_all()
+            return
+        if self._faulted:
+            raise BusError(f"bus is faulted ({self._faulted}); close it and connect again")
+        ticks = self._read_joint_ticks(check_active=False)
+        goal_ticks = np.clip(ticks, self._servo_min, self._servo_max)
+        link.sync_write(116, 4, {s.id: _u32(t) for s, t in zip(self._joint_servos, goal_ticks, strict=True)})
+        if self._gripper is not None:
+            g = self._gripper
+            t = units.signed32(link.read_register(g.id, g.model.register("Present Position")))
+            link.write_register(g.id, g.model.register("Goal Position"), int(np.clip(t, g.min_tick, g.max_tick)))
+        for s in self.servos:
+            link.write_register(s.id, s.model.register("Torque Enable"), 1)
+        self._torque = True
+        primary = self._primary_index
+        self._last_goal = units.ticks_to_rad(goal_ticks[primary], offset=self._servo_offset[primary])
+
+    # ------------------------------------------------------------------ gripper
+
+    def read_gripper(self) -> float:
+        """Present gripper shaft angle, radians (its own READ)."""
+        g = self._require_gripper()
+        ticks = units.signed32(self.link.read_register(g.id, g.model.register("Present Position")))
+        self._raise_alerts()
+        return float(units.ticks_to_rad(ticks, offset=g.offset))
+
+    def write_gripper(self, angle: float) -> None:
+        """Gripper goal, radians of the servo shaft, clamped to the gripper limits (its own WRITE)."""
+        g = self._require_gripper()
+        link = self._require_active()
+        if not math.isfinite(angle):
+            raise ValueError(f"Expected a finite gripper angle in radians, got {angle}")
+        tick = int(np.clip(units.rad_to_ticks(angle, offset=g.offset), g.min_tick, g.max_tick))
+        link.write_register(g.id, g.model.register("Goal Position"), tick)
+        self._raise_alerts()
+
+    # ------------------------------------------------------------------ internals
+
+    def _require_active(self) -> Link:
+        link = self.link
+        if self._faulted:
+            raise BusError(f"bus is faulted ({self._faulted}); no more goals are sent: close it")
+        return link
+
+    def _require_gripper(self) -> ServoPlan:
+        if self._gripper is None:
+            raise BusError(f"arm {self.arm.name!r} has no gripper")
+        return self._gripper
+
+    def _send_goal_ticks(self, link: Link, goal: np.ndarray) -> None:
+        ticks = units.rad_to_ticks(goal[self._servo_joint], offset=self._servo_offset)
+        ticks = np.clip(ticks, self._servo_min, self._servo_max)
+        link.sync_write(116, 4, {s.id: _u32(t) for s, t in zip(self._joint_servos, ticks, strict=True)})
+
+    def _read_joint_ticks(self, *, check_active: bool = True) -> np.ndarray:
+        link = self._require_active() if check_active else self.link
+        requests = {s.id: (s.model.register("Present Position").address, 4) for s in self._joint_servos}
+        try:
+            replies = link.group_read(requests, fast=self._use_fast, what="Present Position")
+        except BusError as exc:
+            self._faulted = str(exc)
+            raise
+        if self._use_fast and link.fast_failures >= 3:
+            log.warning("FAST_SYNC_READ failed 3 times in a row: using plain SYNC_READ from now on")
+            self._use_fast = False
+        self._raise_alerts()
+        return np.array([units.signed32(int.from_bytes(replies[s.id].data, "little")) for s in self._joint_servos])
+
+    def _raise_alerts(self) -> None:
+        link = self.link
+        if not link.alerts:
+            return
+        ids = sorted(link.alerts)
+        link.alerts.clear()
+        found: dict[int, tuple[str, ...]] = {}
+        for dxl_id in ids:
+            s = self._servo(dxl_id)
+            bits = link.read_register(dxl_id, s.model.register("Hardware Error Status"))
+            found[dxl_id] = hardware_error_names(bits) or ("unknown alert",)
+        self._hardware_errors.update(found)
+        detail = "; ".join(f"servo {i}: {', '.join(names)}" for i, names in found.items())
+        if self.recover:
+            log.warning("hardware error (%s): rebooting and configuring again", detail)
+            for dxl_id in ids:
+                self._reboot_and_configure(self._servo(dxl_id))
+            link.alerts.clear()
+            return
+        self._faulted = f"hardware error: {detail}"
+        link.error_count += 1
+        raise BusError(
+            f"hardware error: {detail}; the servo shut its torque off: power-cycle it or reboot it (recover=True)",
+            ids=ids,
+        )
+
+    def _servo(self, dxl_id: int) -> ServoPlan:
+        return next(s for s in self.servos if s.id == dxl_id)
+
+    def _check_servos(self) -> None:
+        link = self.link
+        missing: list[int] = []
+        wrong: list[str] = []
+        wrong_ids: list[int] = []
+        for s in self.servos:
+            reply = link.ping(s.id)
+            if reply is None:
+                missing.append(s.id)
+                continue
+            self._firmware[s.id] = reply.firmware
+            if reply.model_number != s.model.number:
+                wrong_ids.append(s.id)
+                expected = f"{s.model.name} ({s.model.number})"
+                wrong.append(f"servo {s.id} is model {reply.model_number}, the arm expects {expected}")
+        problems: list[str] = []
+        if missing:
+            problems.append(
+                f"no status packet from servo {', '.join(map(str, missing))} at {self.baud} baud on {self.port_name}: "
+                "check the baud rate, the IDs, power and the cable"
+            )
+        if wrong:
+            problems.append("; ".join(wrong) + f": is this the {self.arm.name} arm?")
+        if problems:
+            link.error_count += 1
+            raise BusError("; ".join(problems), ids=sorted(missing + wrong_ids))
+        addresses = {s.model.register("Present Position").address for s in self._joint_servos}
+        capable = all(self._firmware[s.id] >= s.model.fast_read_min_firmware for s in self._joint_servos)
+        self._use_fast = (capable and len(addresses) == 1) if self.fast_read is None else bool(self.fast_read)
+
+    def _wanted(self, s: ServoPlan) -> tuple[dict[str, int], dict[str, int]]:
+        """The EEPROM and RAM register values ``s`` should hold."""
+        reg_max = s.model.register("Velocity Limit").maximum or 1023
+        if s.role == "gripper":
+            max_velocity = float(np.max(self.arm.max_velocity))
+        else:
+            max_velocity = float(self.arm.joints[s.joint].max_velocity)
+        velocity_limit = int(min(units.rad_s_to_velocity_units(max_velocity), reg_max))
+        drive = DriveMode.REVERSE if s.direction < 0 else DriveMode(0)
+        if self.profile is Profile.TIME:
+            drive |= DriveMode.TIME_BASED_PROFILE
+            duration = self.profile_time if self.profile_time is not None else (self.dt or 0.1)
+            pv = int(min(units.seconds_to_ms(duration), 32737))
+            pa = pv // 4
+        else:
+            speed = max_velocity if self.profile_velocity is None else min(self.profile_velocity, max_velocity)
+            pv = int(min(units.rad_s_to_velocity_units(speed), velocity_limit))
+            pa = int(units.rad_s2_to_accel_units(self.profile_acceleration or 0.0))
+        eeprom = {
+            "Operating Mode": int(OperatingMode.POSITION),
+            "Drive Mode": int(drive),
+            "Homing Offset": 0,
+            "Max Position Limit": s.max_tick,
+            "Min Position Limit": s.min_tick,
+            "Velocity Limit": velocity_limit,
+            "Return Delay Time": self.return_delay_us // 2,
+        }
+        ram = {"Profile Acceleration": pa, "Profile Velocity": pv}
+        return eeprom, ram
+
+    def _configure(self, s: ServoPlan) -> None:
+        """Write what differs, EEPROM first with torque off (the EEPROM rule), then the RAM profile."""
+        link = self.link
+        eeprom, ram = self._wanted(s)
+        block = link.read(s.id, _EEPROM_START, _EEPROM_END - _EEPROM_START, what="the EEPROM settings").data
+        changes = {}
+        for name, value in eeprom.items():
+            reg = s.model.register(name)
+            current = reg.decode(block[reg.address - _EEPROM_START : reg.end - _EEPROM_START])
+            if current != value:
+                changes[name] = (current, value)
+        if changes:
+            torque = s.model.register("Torque Enable")
+            if link.read_register(s.id, torque):
+                log.warning("servo %d: turning torque off to write its EEPROM settings", s.id)
+                link.write_register(s.id, torque, 0)
+            for name, (current, value) in changes.items():  # Operating Mode first: changing it resets the profile
+                log.debug("servo %d: %s %d -> %d", s.id, name, current, value)
+                link.write_register(s.id, s.model.register(name), value)
+        for name, value in ram.items():
+            link.write_register(s.id, s.model.register(name), value)
+        srl = s.model.register("Status Return Level")
+        if link.read_register(s.id, srl) != 2:
+            link.write_register(s.id, srl, 2)
+
+    def _reboot_and_configure(self, s: ServoPlan) -> None:
+        link = self.link
+        link.reboot(s.id)
+        deadline = self.clock.now() + 2.0
+        while link.ping_once(s.id) is None:
+            if self.clock.now() > deadline:
+                raise BusError("did not come back after REBOOT", ids=[s.id])
+            self.clock.sleep_until(self.clock.now() + 0.05)
+        self._configure(s)
+        # goal = present, then torque on: the rebooted servo holds where it is
+        present = units.signed32(link.read_register(s.id, s.model.register("Present Position")))
+        link.write_register(s.id, s.model.register("Goal Position"), int(np.clip(present, s.min_tick, s.max_tick)))
+        link.write_register(s.id, s.model.register("Torque Enable"), 1)
+        self._hardware_errors.pop(s.id, None)
+        log.warning("servo %d rebooted and configured again", s.id)
+
+    def _torque_off_all(self) -> None:
+        link = self.link
+        failed: list[int] = []
+        for s in self.servos:
+            try:
+                link.write_register(s.id, s.model.register("Torque Enable"), 0)
+            except BusError as exc:
+                log.error("torque off: %s", exc)
+                failed.append(s.id)
+        self._torque = False
+        if failed:
+            raise BusError("could not turn torque off", ids=failed)
+
+    def _move_to_rest(self) -> None:
+        """Slow profile, one goal at the rest pose, wait (on the bus clock) until reached or timed out."""
+        link = self.link
+        link.alerts.clear()
+        self._faulted = None  # a fault stops goals from the caller, not the shutdown sequence
+        rest = np.clip(self.arm.rest, self.lower, self.upper)
+        present = self.read_positions_raw()
+        if self.profile is Profile.TIME:
+            duration = float(np.max(np.abs(rest - present))) / self.rest_speed
+            pv = int(min(units.seconds_to_ms(duration), 32737))
+            values = dict.fromkeys((s.id for s in self._joint_servos), pv)
+            accel = dict.fromkeys(values, pv // 4)
+            link.sync_write(108, 4, {i: _u32(v) for i, v in accel.items()})
+        else:
+            values = {
+                s.id: int(units.rad_s_to_velocity_units(min(self.rest_speed, self.arm.joints[s.joint].max_velocity)))
+                for s in self._joint_servos
+            }
+        link.sync_write(112, 4, {i: _u32(v) for i, v in values.items()})
+        self._send_goal_ticks(link, rest)
+        self._last_goal = rest
+        start = self.clock.now()
+        while True:
+            err = float(np.max(np.abs(self.read_positions_raw() - rest)))
+            if err <= self.rest_tolerance:
+                log.info("%s reached its rest pose in %.2f s", self.arm.name, self.clock.now() - start)
+                return
+            if self.clock.now() - start > self.rest_timeout:
+                log.warning(
+                    "rest pose not reached after %.1f s (off by %.3f rad): torque off anyway", self.rest_timeout, err
+                )
+                return
+            self.clock.sleep_until(self.clock.now() + 0.05)
+
+    def read_positions_raw(self) -> np.ndarray:
+        """Like read_positions, but allowed while faulted (used by the shutdown sequence)."""
+        ticks = self._read_joint_ticks(check_active=False)
+        return units.ticks_to_rad(ticks[self._primary_index], offset=self._servo_offset[self._primary_index])
+
+
+def _u32(value: int | np.integer) -> bytes:
+    return int(value).to_bytes(4, "little", signed=True)
+
+
+__all__: Sequence[str] = ("DynamixelBus", "Profile", "ServoPlan", "plan_servos")

@@ -1,0 +1,95 @@
+"""A dynamixel-sdk ``PortHandler`` that opens any pyserial URL.
+
+The SDK opens ``serial.Serial(port_name)``, which only knows device paths.  :class:`UrlPortHandler` changes
+that one seam, ``setupPort``, to ``serial.serial_for_url``, so every packet still goes through the SDK's own
+code and any of these work::
+
+    /dev/ttyUSB0   COM3   socket://192.168.1.20:4000   rfc2217://host:port   sim://wx250s   sim://@name
+
+``sim://`` URLs are served by the simulator package ``sim``; it is imported on first use, which registers the
+URL handler with pyserial.  Open failures raise :class:`~retarget.errors.BusError`.
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+
+import serial
+from dynamixel_sdk import PortHandler
+
+from retarget.errors import BusError
+
+log = logging.getLogger(__name__)
+
+#: The baud rates the SDK accepts (``PortHandler.getCFlagBaud``).
+SUPPORTED_BAUDS: tuple[int, ...] = (
+    9600,
+    19200,
+    38400,
+    57600,
+    115200,
+    230400,
+    460800,
+    500000,
+    576000,
+    921600,
+    1000000,
+    1152000,
+    2000000,
+    2500000,
+    3000000,
+    3500000,
+    4000000,
+)
+
+
+def _register_url_handlers(port_name: str) -> None:
+    if port_name.startswith("sim://"):
+        try:
+            importlib.import_module("sim")
+        except ImportError as exc:  # pragma: no cover - sim ships with retarget
+            raise BusError(f"cannot open {port_name!r}: the simulator package 'sim' is not importable ({exc})") from exc
+
+
+class UrlPortHandler(PortHandler):
+    """``dynamixel_sdk.PortHandler`` opened through ``serial.serial_for_url``; everything else is the SDK's."""
+
+    def setupPort(self, cflag_baud: int) -> bool:  # noqa: N802 - the SDK's name
+        if self.is_open:
+            self.closePort()
+        _register_url_handlers(self.port_name)
+        try:
+            self.ser = serial.serial_for_url(
+                self.port_name,
+                baudrate=self.baudrate,
+                bytesize=serial.EIGHTBITS,
+                parity=serial.PARITY_NONE,
+                stopbits=serial.STOPBITS_ONE,
+                timeout=0,
+            )
+        except (serial.SerialException, OSError, ValueError) as exc:
+            raise BusError(f"cannot open port {self.port_name!r} at {self.baudrate} baud: {exc}") from exc
+        self.is_open = True
+        self.ser.reset_input_buffer()
+        self.tx_time_per_byte = (1000.0 / self.baudrate) * 10.0
+        return True
+
+    def closePort(self) -> None:  # noqa: N802 - the SDK's name
+        if self.ser is not None:
+            self.ser.close()
+        self.is_open = False
+        self.is_using = False
+
+
+def open_port(port: str, baud: int) -> UrlPortHandler:
+    """Open ``port`` (a device path or pyserial URL) at ``baud``; raises ``BusError`` naming the port on failure."""
+    if baud not in SUPPORTED_BAUDS:
+        known = ", ".join(map(str, SUPPORTED_BAUDS))
+        raise BusError(f"baud rate {baud} is not supported by dynamixel-sdk; use one of {known}")
+    handler = UrlPortHandler(port)
+    handler.baudrate = baud
+    if not handler.setBaudRate(baud):  # pragma: no cover - the whitelist above matches the SDK's
+        raise BusError(f"cannot open port {port!r} at {baud} baud")
+    log.debug("opened %s at %d baud", port, baud)
+    return handler
