@@ -1,0 +1,354 @@
+"""The fixed-rate control loop that plays retargeted motion on a bus.
+
+Each tick ``k`` has a slot on the loop's clock, ``t0 + k / rate``, and a clip
+time ``start + k * speed / rate`` (wrapped into ``[start, end)`` with
+``loop``).  In its slot a tick:
+
+1. takes the target at its clip time (frames resampled to ticks by linear
+   interpolation, then pulled into the workspace; precomputed before the loop);
+2. solves IK with the arm's :class:`~retarget.ik.CCDSolver`, warm-started from
+   the last solution, within ``ik_iterations`` sweeps (the per-tick budget);
+3. limits each joint's step to ``velocity_scale x max_velocity x elapsed``;
+4. sends the goals in one ``bus.write_goals``;
+5. reads the present positions back with ``bus.read_positions``.
+
+It is deadline-aware: a tick that ends after the next slot's deadline counts
+as an overrun, and the loop resumes at the slot the clock is in (skipping the
+missed ones) instead of running late for ever after, so delays never
+accumulate as drift.  The clock is injected: :class:`~retarget.clock.MonotonicClock`
+for real time, one :class:`~retarget.clock.VirtualClock` shared with the
+simulator for ``--fast`` runs.  ``bus=None`` is a dry run: everything but the
+bus.
+
+Ctrl-C: :meth:`ControlLoop.stop` (signal-safe) ends the run at the next tick
+boundary, and a ``KeyboardInterrupt`` raised inside a tick (e.g. by a
+telemetry callback) ends it too; either way the summary says ``interrupted``.
+:func:`run_on_bus` connects the bus and always closes it, so the bus's own
+shutdown sequence (hold, rest or torque off) runs.
+
+Arrays: joint angles ``(n_joints,)`` float64 radians in ``Arm.joint_names``
+order; targets ``(3,)`` metres in the arm's base frame.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from retarget.clock import Clock, MonotonicClock
+from retarget.errors import ConfigError
+from retarget.summary import RunSummary, summarize
+
+if TYPE_CHECKING:
+    from retarget.arm import Arm
+    from retarget.bus import Bus
+    from retarget.ik import CCDSolver
+    from retarget.mapping import Targets
+
+__all__ = ["ControlLoop", "LoopConfig", "TickRecord", "run_on_bus"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, kw_only=True)
+class LoopConfig:
+    """Timing and safety knobs of a run.  Errors name the CLI option (``key="--rate"``)."""
+
+    rate: float = 100.0  #: ticks per second
+    speed: float = 1.0  #: clip seconds per second of run time
+    start: float = 0.0  #: clip seconds
+    end: float | None = None  #: clip seconds, exclusive with ``loop``; None = the clip's end
+    loop: bool = False  #: wrap back to ``start`` after ``end``
+    max_ticks: int | None = None  #: stop after this many ticks (needed to bound a ``loop`` run in tests)
+    velocity_scale: float = 1.0  #: fraction of each joint's max velocity allowed per tick
+    ik_iterations: int = 20  #: IK sweeps per tick (the per-tick budget)
+    ik_tolerance: float = 1e-3  #: metres
+    progress_every: float = 1.0  #: seconds of loop-clock time between progress callbacks
+
+    def __post_init__(self) -> None:
+        def bad(key: str, message: str, value: object) -> None:
+            raise ConfigError(message, key=key, value=value)
+
+        if not (math.isfinite(self.rate) and self.rate > 0):
+            bad("--rate", "Expected a tick rate > 0 Hz", self.rate)
+        if not (math.isfinite(self.speed) and self.speed > 0):
+            bad("--speed", "Expected a speed > 0", self.speed)
+        if not (math.isfinite(self.start) and self.start >= 0):
+            bad("--start", "Expected a start time >= 0 s", self.start)
+        if self.end is not None and not (math.isfinite(self.end) and self.end > self.start):
+            bad("--end", f"Expected an end time after --start ({self.start:g} s)", self.end)
+        if self.max_ticks is not None and self.max_ticks < 1:
+            bad("--max-ticks", "Expected at least 1 tick", self.max_ticks)
+        if not (math.isfinite(self.velocity_scale) and 0 < self.velocity_scale <= 1):
+            bad("--velocity-scale", "Expected a fraction in (0, 1]", self.velocity_scale)
+        if self.ik_iterations < 1:
+            bad("--ik-iterations", "Expected at least 1 sweep", self.ik_iterations)
+        if not (math.isfinite(self.ik_tolerance) and self.ik_tolerance > 0):
+            bad("--ik-tolerance", "Expected a tolerance > 0 m", self.ik_tolerance)
+
+
+@dataclass(frozen=True, slots=True)
+class TickRecord:
+    """What one tick did.  Angles radians, target metres (base frame), times seconds."""
+
+    tick: int  #: slot index since the start (skipped slots leave gaps)
+    time: float  #: the slot's time since the run's start, loop clock
+    clip_time: float  #: seconds into the clip
+    target: np.ndarray  #: ``(3,)``
+    q_cmd: np.ndarray  #: ``(n_joints,)`` goals sent
+    q_present: np.ndarray | None  #: ``(n_joints,)`` read back; None in a dry run
+    ik_error: float  #: metres, IK solution to target
+    ik_sweeps: int
+    ik_converged: bool
+    compute_time: float  #: real seconds: target + IK + velocity limit
+    bus_time: float  #: real seconds: write + read
+    clamped: bool
+    velocity_limited: bool
+    overrun: bool
+    bus_retries: int  #: retries the bus made during this tick
+
+
+class ControlLoop:
+    """Plays :class:`~retarget.mapping.Targets` on an arm at a fixed rate.  See the module docstring.
+
+    ``solver`` defaults to a :class:`~retarget.ik.CCDSolver` with the config's
+    budget (and the mapping's orientation weight when the targets carry
+    rotations).  ``on_tick(record)`` is called after every tick;
+    ``on_progress(record, summary_so_far=None)`` about once per
+    ``progress_every`` seconds of loop time.
+    """
+
+    def __init__(
+        self,
+        arm: Arm,
+        targets: Targets,
+        *,
+        config: LoopConfig | None = None,
+        clock: Clock | None = None,
+        solver: CCDSolver | None = None,
+        on_tick: Callable[[TickRecord], None] | None = None,
+        on_progress: Callable[[TickRecord], None] | None = None,
+        clip_name: str = "",
+    ):
+        self.arm = arm
+        self.targets = targets
+        self.config = config = config or LoopConfig()
+        self.clock: Clock = clock if clock is not None else MonotonicClock()
+        if solver is None:
+            from retarget.ik import CCDSolver
+
+            kwargs = {}
+            if targets.rotations is not None:
+                kwargs["orientation_weight"] = targets.config.orientation_weight
+            solver = CCDSolver(arm, tolerance=config.ik_tolerance, max_iterations=config.ik_iterations, **kwargs)
+        self.solver = solver
+        self.on_tick = on_tick
+        self.on_progress = on_progress
+        self.clip_name = clip_name
+        self._stop = threading.Event()
+
+        clip_duration = (targets.n_frames - 1) * targets.frame_time
+        end = clip_duration if config.end is None else min(config.end, clip_duration)
+        if config.start >= end and targets.n_frames > 1:
+            raise ConfigError(
+                f"Expected a start time before the clip's end ({end:g} s)", key="--start", value=config.start
+            )
+        self.window = (float(config.start), float(end))
+        step = config.speed / config.rate  #: clip seconds per tick
+        span = end - config.start
+        if config.loop:
+            n = max(1, round(span / step))
+        else:
+            n = int(math.floor(span / step + 1e-9)) + 1
+        #: clip time of each precomputed tick; a looping run indexes them modulo their count
+        self.clip_times = config.start + np.arange(n) * step
+        positions, rotations, clamped = targets.sample(self.clip_times)
+        self._positions = positions
+        self._rotations = rotations
+        self._clamped = clamped
+        self.frames = int(round(span / targets.frame_time)) + 1
+
+    @property
+    def n_ticks(self) -> int | None:
+        """Slots the run will take (None: a loop without ``max_ticks`` runs until stopped)."""
+        n = None if self.config.loop else len(self.clip_times)
+        if self.config.max_ticks is not None:
+            n = self.config.max_ticks if n is None else min(n, self.config.max_ticks)
+        return n
+
+    def stop(self) -> None:
+        """Ask the run to end at the next tick boundary (safe from a signal handler or another thread)."""
+        self._stop.set()
+
+    def initial_pose(self, *, iterations: int = 200) -> np.ndarray:
+        """The IK solution of the first target, solved cold from home with a large budget: ``(n_joints,)`` rad."""
+        from retarget.ik import CCDSolver
+
+        solver = CCDSolver(self.arm, tolerance=self.config.ik_tolerance, max_iterations=iterations)
+        rotation = None if self._rotations is None else self._rotations[0]
+        return np.array(solver.solve(self._positions[0], self.arm.home, rotation).q, dtype=np.float64)
+
+    def run(self, bus: Bus | None = None, *, q_start: np.ndarray | None = None) -> RunSummary:
+        """Run the loop on a connected ``bus`` (``None``: dry run) and return the summary.
+
+        The start pose is the bus's present positions, else ``q_start``, else the
+        arm's rest pose.  ``BusError`` propagates (the caller closes the bus).
+        """
+        cfg = self.config
+        arm = self.arm
+        clock = self.clock
+        dt = 1.0 / cfg.rate
+        lower, upper = arm.lower, arm.upper
+        vstep = arm.max_velocity * cfg.velocity_scale * dt  # rad per slot
+        positions, rotations, clamped_mask = self._positions, self._rotations, self._clamped
+        clip_times = self.clip_times
+        n_pre = len(clip_times)
+        n_ticks = self.n_ticks
+        solve = self.solver.solve
+        on_tick = self.on_tick
+        on_progress = self.on_progress
+        stop = self._stop
+        perf = time.perf_counter
+
+        status0 = bus.status() if bus is not None else None
+        retries_before = status0.retries if status0 is not None else 0
+        if bus is not None:
+            q_cmd = np.asarray(bus.read_positions(), dtype=np.float64)
+        elif q_start is not None:
+            q_cmd = np.asarray(q_start, dtype=np.float64)
+        else:
+            q_cmd = arm.rest
+        if q_cmd.shape != (arm.n_joints,):
+            raise ValueError(f"Expected a start pose of shape ({arm.n_joints},), got {q_cmd.shape}")
+        q_cmd = np.clip(q_cmd, lower, upper)
+        q_ik = q_cmd.copy()
+
+        err_l: list[float] = []
+        sweeps_l: list[int] = []
+        conv_l: list[bool] = []
+        clamp_l: list[bool] = []
+        vlim_l: list[bool] = []
+        comp_l: list[float] = []
+        bus_l: list[float] = []
+        overruns = skipped = 0
+        interrupted = False
+        last_slot = -1
+        next_progress = cfg.progress_every
+        retries_seen = retries_before
+
+        wall0 = perf()
+        t0 = clock.now()
+        k = 0
+        try:
+            while (n_ticks is None or k < n_ticks) and not stop.is_set():
+                slot_time = k * dt
+                clock.sleep_until(t0 + slot_time)
+                c0 = perf()
+                i = k % n_pre if cfg.loop else k
+                target = positions[i]
+                rotation = None if rotations is None else rotations[i]
+                result = solve(target, q_ik, rotation)
+                q_ik = result.q
+                elapsed = k - last_slot if last_slot >= 0 else 1
+                delta = q_ik - q_cmd
+                limit = vstep * elapsed
+                vlimited = bool(np.any(np.abs(delta) > limit))
+                if vlimited:
+                    delta = np.clip(delta, -limit, limit)
+                q_cmd = np.clip(q_cmd + delta, lower, upper)
+                c1 = perf()
+                present = None
+                retries = 0
+                if bus is not None:
+                    bus.write_goals(q_cmd)
+                    present = bus.read_positions()
+                    retries_now = bus.status().retries
+                    retries = retries_now - retries_seen
+                    retries_seen = retries_now
+                c2 = perf()
+                last_slot = k
+                # deadline: did this tick end after the next slot began?
+                now = clock.now() - t0
+                overrun = now > slot_time + dt
+                next_k = k + 1
+                if overrun:
+                    overruns += 1
+                    next_k = max(k + 1, int(now / dt))
+                    skipped += next_k - k - 1
+                err_l.append(result.error)
+                sweeps_l.append(result.iterations)
+                conv_l.append(result.converged)
+                clamp_l.append(bool(clamped_mask[i]))
+                vlim_l.append(vlimited)
+                comp_l.append(c1 - c0)
+                bus_l.append(c2 - c1)
+                if on_tick is not None or (on_progress is not None and slot_time >= next_progress):
+                    record = TickRecord(
+                        tick=k,
+                        time=slot_time,
+                        clip_time=float(clip_times[i]),
+                        target=target,
+                        q_cmd=q_cmd,
+                        q_present=present,
+                        ik_error=float(result.error),
+                        ik_sweeps=int(result.iterations),
+                        ik_converged=bool(result.converged),
+                        compute_time=c1 - c0,
+                        bus_time=c2 - c1,
+                        clamped=bool(clamped_mask[i]),
+                        velocity_limited=vlimited,
+                        overrun=overrun,
+                        bus_retries=retries,
+                    )
+                    if on_tick is not None:
+                        on_tick(record)
+                    if on_progress is not None and slot_time >= next_progress:
+                        next_progress = slot_time + cfg.progress_every
+                        on_progress(record)
+                k = next_k
+            interrupted = stop.is_set()
+        except KeyboardInterrupt:
+            interrupted = True
+            log.info("interrupted at tick %d", k)
+        wall = perf() - wall0
+        run_time = (last_slot + 1) * dt if last_slot >= 0 else 0.0
+        status1 = bus.status() if bus is not None else None
+        played = (last_slot + 1) * cfg.speed * dt if last_slot >= 0 else 0.0
+        return summarize(
+            arm=arm.name,
+            clip=self.clip_name,
+            dry_run=bus is None,
+            interrupted=interrupted,
+            frames=self.frames,
+            rate=cfg.rate,
+            duration_s=played,
+            run_time_s=run_time,
+            wall_time_s=wall,
+            ik_error_m=np.asarray(err_l),
+            ik_sweeps=np.asarray(sweeps_l),
+            ik_converged=np.asarray(conv_l, dtype=bool),
+            clamped=np.asarray(clamp_l, dtype=bool),
+            velocity_limited=np.asarray(vlim_l, dtype=bool),
+            compute_s=np.asarray(comp_l),
+            bus_s=np.asarray(bus_l),
+            overruns=overruns,
+            skipped_ticks=skipped,
+            bus_errors=(status1.errors - status0.errors) if status1 is not None and status0 is not None else 0,
+            bus_retries=(status1.retries - retries_before) if status1 is not None else 0,
+        )
+
+
+def run_on_bus(loop: ControlLoop, bus: Bus) -> RunSummary:
+    """Connect ``bus``, run ``loop`` on it and always close it (its shutdown sequence runs even on Ctrl-C)."""
+    bus.connect()
+    try:
+        return loop.run(bus)
+    finally:
+        bus.close()

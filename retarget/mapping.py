@@ -1,0 +1,480 @@
+"""Human arm motion -> tool-point targets of a robot arm, vectorized over frames.
+
+The mapping is position based and built from five parts, each configurable in
+the ``[mapping]`` table of an arm description and by CLI flags
+(:class:`MappingConfig`):
+
+1. the human **wrist relative to the shoulder** of the chosen side;
+2. expressed in a **body frame** built from the torso (hips, the midpoint of
+   both shoulders, the shoulder line), so walking or turning does not move the
+   arm.  Its axes are forward, left and up; ``forward="+z"`` etc. replaces it
+   by a fixed frame of the BVH world instead;
+3. **scaled** by ``arm_scale`` x the robot's reach over the human arm length
+   measured from the clip (median shoulder-elbow + elbow-wrist), so BVH units
+   (cm, m, inches) do not matter;
+4. **rotated** into the robot base frame (x forward, y left, z up; the body
+   frame's forward/left/up map onto them, which also turns BVH Y-up into
+   robot Z-up);
+5. **offset** to ``origin``, a point of the workspace in the base frame where
+   the human shoulder lands (default: in front of and above the robot's
+   shoulder joint, so a hanging arm maps in front of the robot, not into the
+   base).
+
+Targets outside the :class:`Workspace` (a shell ``min_reach..max_reach``
+around the robot's shoulder pivot, above ``floor``) are pulled to the nearest
+reachable point and counted in ``Targets.clamped``.
+
+Optionally (``orientation_weight > 0``) the hand's orientation becomes a tool
+orientation: tool x along the hand bone, tool z the body's up in the rest pose.
+
+Units: BVH file units in, metres and radians out.  This module is math only
+(it imports neither drivers, sim nor serial).
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, fields, replace
+from os import PathLike
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from retarget.errors import ConfigError
+
+if TYPE_CHECKING:
+    from retarget.arm import Arm
+    from retarget.motion import Motion
+
+__all__ = [
+    "Axis",
+    "MappingConfig",
+    "Side",
+    "Targets",
+    "Workspace",
+    "arm_geometry",
+    "body_frames",
+    "map_points",
+    "retarget_targets",
+]
+
+
+class Side(enum.Enum):
+    LEFT = "left"
+    RIGHT = "right"
+
+
+class Axis(enum.Enum):
+    """A signed axis of the BVH world, or ``AUTO`` (detect from the skeleton)."""
+
+    AUTO = "auto"
+    PX = "+x"
+    NX = "-x"
+    PY = "+y"
+    NY = "-y"
+    PZ = "+z"
+    NZ = "-z"
+
+    @property
+    def vector(self) -> np.ndarray:
+        """``(3,)`` unit vector; ``AUTO`` has none."""
+        if self is Axis.AUTO:
+            raise ValueError("Axis.AUTO has no vector")
+        v = np.zeros(3)
+        v["xyz".index(self.value[1])] = 1.0 if self.value[0] == "+" else -1.0
+        return v
+
+
+_FORWARD_CHOICES = ("auto", "+x", "-x", "+z", "-z", "+y", "-y")
+_UP_CHOICES = ("+y", "-y", "+z", "-z", "+x", "-x")
+
+
+@dataclass(frozen=True)
+class MappingConfig:
+    """How human motion maps onto one arm.  Build with :meth:`from_table`; all fields keyword-only.
+
+    Lengths are metres in the robot base frame; fractions are of the robot's
+    reach from its shoulder pivot (see :func:`arm_geometry`).
+    """
+
+    side: Side = Side.RIGHT  #: which human arm drives the robot
+    forward: Axis = Axis.AUTO  #: body forward: AUTO = per frame from the torso; else a fixed BVH axis
+    up: Axis = Axis.PY  #: BVH up axis, used with a fixed ``forward`` and for the hand orientation
+    arm_scale: float = 0.5  #: the human's full arm length maps to this fraction of the robot's reach
+    origin: tuple[float, float, float] | None = None  #: where the shoulder lands; None = default_origin()
+    max_reach: float = 0.95  #: outer radius of the workspace shell, fraction of reach
+    min_reach: float = 0.2  #: inner radius, fraction of reach
+    floor: float = 0.03  #: lowest target z, metres above the base frame origin
+    orientation_weight: float = 0.0  #: 0 = position only; > 0 also targets the tool orientation
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            _check(f.name, getattr(self, f.name), key=f"mapping.{f.name}", path=None)
+        if self.min_reach >= self.max_reach:
+            raise ConfigError(
+                f"Expected min_reach < max_reach ({self.max_reach})", key="mapping.min_reach", value=self.min_reach
+            )
+
+    @classmethod
+    def from_table(
+        cls,
+        table: Mapping[str, Any] | None,
+        *,
+        path: str | PathLike[str] | None = None,
+        overrides: Mapping[str, Any] | None = None,
+    ) -> MappingConfig:
+        """Parse the raw ``[mapping]`` TOML table of an arm file, then apply ``overrides``.
+
+        Raises ``ConfigError`` with ``key="mapping.<name>"`` and the file ``path``
+        for an unknown key or a bad value.  ``overrides`` (from CLI flags; ``None``
+        values are skipped) use the same names and conversions.
+        """
+        known = {f.name for f in fields(cls)}
+        values: dict[str, Any] = {}
+        for source, where in ((table or {}, path), (overrides or {}, None)):
+            for name, raw in source.items():
+                if raw is None and source is overrides:
+                    continue
+                if name not in known:
+                    raise ConfigError(
+                        f"unknown key; expected one of {', '.join(sorted(known))}", path=where, key=f"mapping.{name}"
+                    )
+                values[name] = _convert(name, raw, key=f"mapping.{name}", path=where)
+        try:
+            return cls(**values)
+        except ConfigError as exc:
+            if path is None or exc.path is not None:
+                raise
+            raise ConfigError(exc.message, path=path, key=exc.key, value=exc.value) from exc
+
+    def with_overrides(self, **overrides: Any) -> MappingConfig:
+        """A copy with the given fields replaced (``None`` values skipped), validated."""
+        values = {k: _convert(k, v, key=f"mapping.{k}", path=None) for k, v in overrides.items() if v is not None}
+        return replace(self, **values)
+
+    def default_origin(self, geometry: ArmGeometry) -> np.ndarray:
+        """``(3,)`` metres: 0.4 reach in front of and 0.1 reach above the shoulder pivot."""
+        return geometry.pivot + geometry.reach * np.array([0.4, 0.0, 0.1])
+
+
+def _convert(name: str, raw: Any, *, key: str, path: str | PathLike[str] | None) -> Any:
+    """A TOML/CLI value -> the field's type, or ConfigError."""
+    try:
+        if name == "side":
+            return raw if isinstance(raw, Side) else Side(str(raw).lower())
+        if name in ("forward", "up"):
+            if isinstance(raw, Axis):
+                return raw
+            text = str(raw).lower()
+            if text in ("x", "y", "z"):
+                text = "+" + text
+            choices = _FORWARD_CHOICES if name == "forward" else _UP_CHOICES
+            if text not in choices:
+                raise ValueError
+            return Axis(text)
+        if name == "origin":
+            if isinstance(raw, str):
+                raw = raw.split(",")
+            if isinstance(raw, bool) or len(raw) != 3:
+                raise ValueError
+            return tuple(float(v) for v in raw)
+        if isinstance(raw, bool):
+            raise ValueError
+        return float(raw)
+    except (TypeError, ValueError):
+        raise ConfigError(f"Expected {_EXPECTED[name]}", path=path, key=key, value=raw) from None
+
+
+_EXPECTED = {
+    "side": "'left' or 'right'",
+    "forward": "one of " + ", ".join(_FORWARD_CHOICES),
+    "up": "one of " + ", ".join(_UP_CHOICES),
+    "arm_scale": "a number > 0",
+    "origin": "three numbers x,y,z in metres",
+    "max_reach": "a fraction in (0, 1]",
+    "min_reach": "a fraction in [0, 1)",
+    "floor": "a finite number of metres",
+    "orientation_weight": "a number >= 0",
+}
+
+
+def _check(name: str, value: Any, *, key: str, path: str | PathLike[str] | None) -> None:
+    ok = True
+    if name == "side":
+        ok = isinstance(value, Side)
+    elif name in ("forward", "up"):
+        ok = isinstance(value, Axis) and (name == "forward" or value is not Axis.AUTO)
+    elif name == "origin":
+        ok = value is None or (len(value) == 3 and all(math.isfinite(v) for v in value))
+    else:
+        ok = isinstance(value, int | float) and math.isfinite(value)
+        if ok and name == "arm_scale":
+            ok = value > 0
+        elif ok and name == "max_reach":
+            ok = 0 < value <= 1
+        elif ok and name == "min_reach":
+            ok = 0 <= value < 1
+        elif ok and name == "orientation_weight":
+            ok = value >= 0
+    if not ok:
+        raise ConfigError(f"Expected {_EXPECTED[name]}", path=path, key=key, value=value)
+
+
+# ----------------------------------------------------------------------------------------------- arm geometry
+
+
+@dataclass(frozen=True)
+class ArmGeometry:
+    """Where the arm's shoulder pivot is and how far its tool point reaches from it (base frame, metres)."""
+
+    pivot: np.ndarray  #: ``(3,)`` the first joint whose axis differs from the base joint's (the shoulder)
+    reach: float  #: sum of the link lengths from the pivot to the tool point
+
+
+def arm_geometry(arm: Arm) -> ArmGeometry:
+    """The shoulder pivot and reach of ``arm``, from one FK call.
+
+    Distances between consecutive joint origins are constant in a serial chain,
+    so their sum from the pivot to the tool point bounds the reach whatever the pose.
+    """
+    _, points = arm.fk(arm.home)  # (n_joints + 1, 3): joint origins then the tool point
+    axes = [np.asarray(j.axis, dtype=np.float64) for j in arm.joints]
+    k = 0
+    for i in range(1, arm.n_joints):
+        if abs(float(np.dot(axes[i], axes[0]))) < 0.99 * np.linalg.norm(axes[i]) * np.linalg.norm(axes[0]):
+            k = i
+            break
+    segments = np.diff(points[k:], axis=0)
+    return ArmGeometry(pivot=np.array(points[k], dtype=np.float64), reach=float(np.linalg.norm(segments, axis=1).sum()))
+
+
+@dataclass(frozen=True)
+class Workspace:
+    """The reachable region targets are pulled into: ``r_min <= |p - center| <= r_max`` and ``z >= floor``."""
+
+    center: np.ndarray  #: ``(3,)`` metres, base frame (the shoulder pivot)
+    r_min: float
+    r_max: float
+    floor: float
+
+    def clamp(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pull ``points`` ``(..., 3)`` metres to the nearest point of the workspace.
+
+        Returns ``(clamped (..., 3), moved (...) bool)``.  Radial first, then up to
+        the floor keeping the horizontal direction from the center.
+        """
+        p = np.array(points, dtype=np.float64)
+        if p.shape[-1:] != (3,):
+            raise ValueError(f"Expected points of shape (..., 3), got {p.shape}")
+        d = p - self.center
+        r = np.linalg.norm(d, axis=-1)
+        safe = np.where(r > 1e-12, r, 1.0)
+        radius = np.clip(r, self.r_min, self.r_max)
+        fwd = np.zeros(3)
+        fwd[0] = 1.0
+        d = np.where((r > 1e-12)[..., None], d / safe[..., None], fwd) * radius[..., None]
+        low = d[..., 2] + self.center[2] < self.floor
+        if np.any(low):
+            dz = self.floor - self.center[2]
+            h = d[..., :2]
+            hn = np.linalg.norm(h, axis=-1)
+            hdir = np.where((hn > 1e-12)[..., None], h / np.where(hn > 1e-12, hn, 1.0)[..., None], fwd[:2])
+            lo = math.sqrt(max(self.r_min**2 - dz**2, 0.0))
+            hi = math.sqrt(max(self.r_max**2 - dz**2, 0.0))
+            hn2 = np.clip(hn, lo, hi)
+            d[..., :2] = np.where(low[..., None], hdir * hn2[..., None], h)
+            d[..., 2] = np.where(low, dz, d[..., 2])
+        out = d + self.center
+        moved = np.linalg.norm(out - p, axis=-1) > 1e-9
+        return out, moved
+
+
+# ----------------------------------------------------------------------------------------------- the mapping
+
+
+def body_frames(hips: np.ndarray, left_shoulder: np.ndarray, right_shoulder: np.ndarray) -> np.ndarray:
+    """Torso frames ``(n, 3, 3)`` from points ``(n, 3)`` (any units, BVH world).
+
+    Columns are forward, left, up as BVH-world unit vectors: left along the
+    shoulder line, up from the hips to the shoulders' midpoint (made orthogonal),
+    forward = left x up.  ``frames[i].T @ v`` expresses a world vector in the body frame.
+    """
+    left = np.asarray(left_shoulder, dtype=np.float64) - right_shoulder
+    left /= _norm(left, "shoulder line")
+    up = 0.5 * (np.asarray(left_shoulder) + right_shoulder) - hips
+    fwd = np.cross(left, up)
+    fwd /= _norm(fwd, "torso (shoulder line parallel to the spine)")
+    up = np.cross(fwd, left)
+    return np.stack([fwd, left, up], axis=-1)
+
+
+def fixed_frame(forward: Axis, up: Axis) -> np.ndarray:
+    """``(3, 3)`` columns forward, left, up for a fixed BVH forward and up axis."""
+    f, u = forward.vector, up.vector
+    if abs(float(f @ u)) > 0.5:
+        raise ConfigError(
+            f"Expected a forward axis perpendicular to up ({up.value})", key="mapping.forward", value=forward.value
+        )
+    return np.stack([f, np.cross(u, f), u], axis=-1)
+
+
+def _norm(v: np.ndarray, what: str) -> np.ndarray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    if np.any(n < 1e-12):
+        raise ValueError(f"Expected a non-degenerate {what}, got a zero-length vector")
+    return n
+
+
+def map_points(
+    shoulder: np.ndarray,
+    wrist: np.ndarray,
+    frames: np.ndarray,
+    *,
+    scale: float,
+    origin: np.ndarray,
+) -> np.ndarray:
+    """Wrist relative to shoulder, in body ``frames``, scaled and offset: ``(n, 3)`` metres, base frame.
+
+    ``shoulder``/``wrist`` ``(n, 3)`` file units, BVH world; ``frames`` ``(n, 3, 3)`` or ``(3, 3)``
+    (columns forward, left, up); ``scale`` metres per file unit; ``origin`` ``(3,)`` metres.
+    """
+    rel = np.asarray(wrist, dtype=np.float64) - shoulder
+    local = np.einsum("...ji,...j->...i", frames, rel)  # frames^T @ rel: (forward, left, up) == robot (x, y, z)
+    return local * scale + origin
+
+
+@dataclass(frozen=True)
+class Targets:
+    """Per-frame tool targets of one clip on one arm."""
+
+    positions: np.ndarray  #: ``(n_frames, 3)`` metres, base frame, inside the workspace
+    raw: np.ndarray  #: ``(n_frames, 3)`` metres, before the workspace clamp
+    clamped: np.ndarray  #: ``(n_frames,)`` bool, the frame's target was pulled into the workspace
+    rotations: np.ndarray | None  #: ``(n_frames, 3, 3)`` tool orientations in the base frame, or None
+    frame_time: float  #: seconds between frames
+    workspace: Workspace
+    config: MappingConfig
+    scale: float  #: metres per BVH file unit
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.positions.shape[0])
+
+    @property
+    def n_clamped(self) -> int:
+        return int(np.count_nonzero(self.clamped))
+
+    def sample(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+        """Targets at clip ``times`` ``(n,)`` seconds by linear interpolation of the raw targets, then clamped.
+
+        Returns ``(positions (n, 3) metres, rotations (n, 3, 3) or None, clamped (n,) bool)``.
+        Times outside the clip hold the first/last frame.
+        """
+        t = np.asarray(times, dtype=np.float64) / self.frame_time
+        n = self.n_frames
+        if n == 1:
+            i0 = np.zeros(t.shape, dtype=np.intp)
+            w = np.zeros(t.shape)
+        else:
+            t = np.clip(t, 0.0, n - 1)
+            i0 = np.minimum(np.floor(t).astype(np.intp), n - 2)
+            w = t - i0
+        i1 = np.minimum(i0 + 1, n - 1)
+        raw = self.raw[i0] * (1.0 - w)[:, None] + self.raw[i1] * w[:, None]
+        positions, clamped = self.workspace.clamp(raw)
+        rotations = None
+        if self.rotations is not None:
+            rotations = _orthonormalize(
+                self.rotations[i0] * (1.0 - w)[:, None, None] + self.rotations[i1] * w[:, None, None]
+            )
+        return positions, rotations, clamped
+
+
+def _orthonormalize(m: np.ndarray) -> np.ndarray:
+    """Nearest rotations ``(n, 3, 3)`` by Gram-Schmidt on the x and z columns."""
+    x = m[..., :, 0] / np.linalg.norm(m[..., :, 0], axis=-1, keepdims=True)
+    z = m[..., :, 2] - np.sum(m[..., :, 2] * x, axis=-1, keepdims=True) * x
+    z /= np.linalg.norm(z, axis=-1, keepdims=True)
+    return np.stack([x, np.cross(z, x), z], axis=-1)
+
+
+def retarget_targets(motion: Motion, arm: Arm, config: MappingConfig | None = None) -> Targets:
+    """Tool targets for every frame of ``motion`` on ``arm``.
+
+    ``config`` defaults to ``MappingConfig.from_table(arm.mapping, path=arm.source)``.
+    Raises ``BvhError`` when the clip has no arm chain for the side.
+    """
+    if config is None:
+        config = MappingConfig.from_table(arm.mapping, path=arm.source)
+    side = config.side.value
+    chain = motion.arm_points(side)
+    pts = np.asarray(chain.points, dtype=np.float64)  # (n, 3, 3) shoulder, elbow, wrist
+    shoulder, elbow, wrist = pts[:, 0], pts[:, 1], pts[:, 2]
+    other = "left" if side == "right" else "right"
+    opposite = np.asarray(motion.arm_points(other).points, dtype=np.float64)[:, 0]
+    left_sh, right_sh = (shoulder, opposite) if side == "left" else (opposite, shoulder)
+
+    if config.forward is Axis.AUTO:
+        all_positions = motion.positions()
+        root = int(np.flatnonzero(np.asarray(motion.parents) < 0)[0])
+        frames = body_frames(all_positions[:, root], left_sh, right_sh)
+    else:
+        frames = fixed_frame(config.forward, config.up)
+
+    human = np.median(np.linalg.norm(elbow - shoulder, axis=-1) + np.linalg.norm(wrist - elbow, axis=-1))
+    if not np.isfinite(human) or human <= 0:
+        raise ValueError(f"Expected a human arm of positive length, got {human}")
+    geometry = arm_geometry(arm)
+    scale = config.arm_scale * geometry.reach / float(human)
+    origin = np.asarray(config.origin, dtype=np.float64) if config.origin else config.default_origin(geometry)
+    raw = map_points(shoulder, wrist, frames, scale=scale, origin=origin)
+    workspace = Workspace(
+        center=geometry.pivot,
+        r_min=config.min_reach * geometry.reach,
+        r_max=config.max_reach * geometry.reach,
+        floor=config.floor,
+    )
+    positions, clamped = workspace.clamp(raw)
+    rotations = None
+    if config.orientation_weight > 0:
+        rotations = _hand_rotations(motion, chain.names, frames, config)
+    return Targets(
+        positions=positions,
+        raw=raw,
+        clamped=clamped,
+        rotations=rotations,
+        frame_time=float(motion.frame_time),
+        workspace=workspace,
+        config=config,
+        scale=scale,
+    )
+
+
+def _hand_rotations(motion: Motion, names: tuple[str, ...], frames: np.ndarray, config: MappingConfig) -> np.ndarray:
+    """Tool orientations ``(n, 3, 3)`` in the base frame from the hand joint's global rotation.
+
+    Tool x = the hand bone (the wrist's first child, else the forearm direction),
+    tool z = the BVH up axis seen from the hand in the rest pose (rest rotations are identity).
+    """
+    rotations, positions = motion.global_transforms()
+    joint_names = list(motion.joint_names)
+    wrist_name = names[2]
+    if wrist_name not in joint_names:  # an End Site wrist has no rotation of its own: use the forearm's
+        wrist_name = names[1]
+    w = joint_names.index(wrist_name)
+    R = rotations[:, w]  # (n, 3, 3) hand local -> world
+    children = np.flatnonzero(np.asarray(motion.parents) == w)
+    if children.size:
+        bone = positions[0, children[0]] - positions[0, w]
+    else:
+        bone = positions[0, w] - positions[0, joint_names.index(names[1])]
+    x = R[0].T @ bone
+    x /= np.linalg.norm(x)
+    z = config.up.vector - (config.up.vector @ x) * x
+    if np.linalg.norm(z) < 1e-6:
+        z = np.cross(x, [1.0, 0.0, 0.0]) if abs(x[0]) < 0.9 else np.cross(x, [0.0, 0.0, 1.0])
+    z /= np.linalg.norm(z)
+    align = np.stack([x, np.cross(z, x), z], axis=-1)  # tool -> hand local
+    return np.einsum("...ji,...jk,kl->...il", frames, R, align)

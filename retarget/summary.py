@@ -1,0 +1,139 @@
+"""The summary of one control-loop run: what was played, how well IK tracked it, how the bus and timing behaved.
+
+:func:`summarize` builds a :class:`RunSummary` from per-tick arrays;
+``RunSummary.format()`` is the human text the CLI prints on stderr and
+``RunSummary.to_dict()`` the ``--json`` document on stdout.  Times in the
+dict carry their unit in the key (``_s``, ``_ms``, ``_mm``, ``_hz``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+__all__ = ["RunSummary", "summarize"]
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    """Counters and percentiles of one run (see the module docstring for units)."""
+
+    arm: str
+    clip: str
+    dry_run: bool
+    interrupted: bool
+    frames: int  #: clip frames covered by the played window (start..end)
+    duration_s: float  #: clip seconds covered by the ticks that ran
+    ticks: int  #: ticks that ran
+    rate_hz: float  #: the requested tick rate
+    run_time_s: float  #: time on the loop's clock from the first to the last tick's slot end
+    wall_time_s: float  #: real seconds the loop took
+    real_time_factor: float  #: run_time_s / wall_time_s (1.0 = real time; > 1 faster, e.g. --fast)
+    ik_converged_pct: float
+    ik_error_median_mm: float
+    ik_error_p95_mm: float
+    ik_error_max_mm: float
+    ik_sweeps_mean: float
+    clamped_ticks: int  #: ticks whose target was pulled into the workspace
+    velocity_limited_ticks: int  #: ticks where a joint's step was cut to its velocity limit
+    bus_errors: int
+    bus_retries: int
+    tick_ms_p50: float  #: compute + bus, real time
+    tick_ms_p99: float
+    tick_ms_max: float
+    compute_ms_p50: float  #: mapping lookup + IK + bookkeeping, real time
+    compute_ms_p99: float
+    bus_ms_p50: float  #: write_goals + read_positions, real time
+    overruns: int  #: ticks that ended after the next tick's deadline
+    skipped_ticks: int  #: schedule slots dropped to catch up after overruns (no drift)
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-ready dict (floats rounded to 4 decimals)."""
+        return {k: round(v, 4) if isinstance(v, float) else v for k, v in asdict(self).items()}
+
+    def format(self) -> str:
+        """Human text, a few lines, for stderr."""
+        head = "dry run" if self.dry_run else "replay"
+        if self.interrupted:
+            head += " (interrupted)"
+        return "\n".join(
+            [
+                f"{head}: {self.clip} on {self.arm}: {self.frames} frames, {self.duration_s:.2f} s of motion, "
+                f"{self.ticks} ticks at {self.rate_hz:g} Hz in {self.wall_time_s:.3f} s "
+                f"({self.real_time_factor:.1f}x real time)",
+                f"  IK: {self.ik_converged_pct:.1f}% converged, error median {self.ik_error_median_mm:.2f} mm, "
+                f"p95 {self.ik_error_p95_mm:.2f} mm, max {self.ik_error_max_mm:.2f} mm, "
+                f"{self.ik_sweeps_mean:.1f} sweeps/tick",
+                f"  targets clamped to the workspace: {self.clamped_ticks} ticks; "
+                f"velocity-limited: {self.velocity_limited_ticks} ticks",
+                f"  bus: {self.bus_errors} errors, {self.bus_retries} retries; "
+                f"tick p50 {self.tick_ms_p50:.3f} ms, p99 {self.tick_ms_p99:.3f} ms, max {self.tick_ms_max:.3f} ms "
+                f"(compute p99 {self.compute_ms_p99:.3f} ms); overruns {self.overruns}, skipped {self.skipped_ticks}",
+            ]
+        )
+
+
+def _pct(values: np.ndarray, q: float) -> float:
+    return float(np.percentile(values, q)) if values.size else 0.0
+
+
+def summarize(
+    *,
+    arm: str,
+    clip: str,
+    dry_run: bool,
+    interrupted: bool,
+    frames: int,
+    rate: float,
+    duration_s: float,
+    run_time_s: float,
+    wall_time_s: float,
+    ik_error_m: np.ndarray,
+    ik_sweeps: np.ndarray,
+    ik_converged: np.ndarray,
+    clamped: np.ndarray,
+    velocity_limited: np.ndarray,
+    compute_s: np.ndarray,
+    bus_s: np.ndarray,
+    overruns: int,
+    skipped_ticks: int,
+    bus_errors: int = 0,
+    bus_retries: int = 0,
+) -> RunSummary:
+    """A :class:`RunSummary` from per-tick arrays ``(n_ticks,)`` (errors metres, times seconds)."""
+    err_mm = np.asarray(ik_error_m, dtype=np.float64) * 1e3
+    tick_ms = (np.asarray(compute_s) + np.asarray(bus_s)) * 1e3
+    compute_ms = np.asarray(compute_s, dtype=np.float64) * 1e3
+    n = int(err_mm.size)
+    return RunSummary(
+        arm=arm,
+        clip=clip,
+        dry_run=dry_run,
+        interrupted=interrupted,
+        frames=int(frames),
+        duration_s=float(duration_s),
+        ticks=n,
+        rate_hz=float(rate),
+        run_time_s=float(run_time_s),
+        wall_time_s=float(wall_time_s),
+        real_time_factor=float(run_time_s / wall_time_s) if wall_time_s > 0 else float("inf"),
+        ik_converged_pct=100.0 * float(np.count_nonzero(ik_converged)) / n if n else 0.0,
+        ik_error_median_mm=_pct(err_mm, 50),
+        ik_error_p95_mm=_pct(err_mm, 95),
+        ik_error_max_mm=float(err_mm.max()) if n else 0.0,
+        ik_sweeps_mean=float(np.mean(ik_sweeps)) if n else 0.0,
+        clamped_ticks=int(np.count_nonzero(clamped)),
+        velocity_limited_ticks=int(np.count_nonzero(velocity_limited)),
+        bus_errors=int(bus_errors),
+        bus_retries=int(bus_retries),
+        tick_ms_p50=_pct(tick_ms, 50),
+        tick_ms_p99=_pct(tick_ms, 99),
+        tick_ms_max=float(tick_ms.max()) if n else 0.0,
+        compute_ms_p50=_pct(compute_ms, 50),
+        compute_ms_p99=_pct(compute_ms, 99),
+        bus_ms_p50=_pct(np.asarray(bus_s, dtype=np.float64) * 1e3, 50),
+        overruns=int(overruns),
+        skipped_ticks=int(skipped_ticks),
+    )
