@@ -22,7 +22,7 @@ from collections.abc import Sequence
 from retarget.errors import BusError, RetargetError
 
 #: Subcommands in the order ``--help`` lists them.
-COMMANDS: tuple[str, ...] = ("inspect",)
+COMMANDS: tuple[str, ...] = ("inspect", "scan")
 
 EXIT_OK = 0
 EXIT_USAGE = 2  #: bad input: a file, a config key, an option value
@@ -33,6 +33,7 @@ EPILOG = """\
 examples:
   retarget inspect clip.bvh            show the skeleton, frame rate and arm chains
   retarget inspect clip.bvh --json     the same as JSON on stdout
+  retarget scan --port /dev/ttyUSB0    list the servos on a port: ID, model, firmware, baud
 
 run 'retarget COMMAND --help' for each command's own examples.
 """
