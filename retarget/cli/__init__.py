@@ -22,7 +22,7 @@ from collections.abc import Sequence
 from retarget.errors import BusError, RetargetError
 
 #: Subcommands in the order ``--help`` lists them.
-COMMANDS: tuple[str, ...] = ("inspect", "scan")
+COMMANDS: tuple[str, ...] = ("replay", "export", "inspect", "scan")
 
 EXIT_OK = 0
 EXIT_USAGE = 2  #: bad input: a file, a config key, an option value
@@ -31,6 +31,9 @@ EXIT_INTERRUPTED = 130
 
 EPILOG = """\
 examples:
+  retarget replay                      the demo clip on wx250s, in-process simulated bus
+  retarget replay clip.bvh --fast      as fast as possible on a virtual clock
+  retarget export clip.bvh -o t.csv    the retargeted joint trajectory as CSV, no bus
   retarget inspect clip.bvh            show the skeleton, frame rate and arm chains
   retarget inspect clip.bvh --json     the same as JSON on stdout
   retarget scan --port /dev/ttyUSB0    list the servos on a port: ID, model, firmware, baud

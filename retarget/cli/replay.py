@@ -1,0 +1,307 @@
+"""``retarget replay``: play a BVH clip's arm motion on an arm, in a fixed-rate control loop.
+
+With no arguments it replays the bundled demo clip on the default arm (wx250s)
+over an in-process simulated bus in real time.  ``--fast`` runs as fast as
+possible on a virtual clock shared with the simulator; ``--dry-run`` solves
+every tick without any bus.  Also home of the options ``retarget export``
+shares (clip window, mapping flags).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import signal
+import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from retarget.errors import ConfigError
+
+if TYPE_CHECKING:
+    from retarget.arm import Arm
+    from retarget.bus import Bus
+    from retarget.clock import Clock
+    from retarget.control import ControlLoop, LoopConfig, TickRecord
+    from retarget.mapping import Targets
+    from retarget.motion import Motion
+
+DEFAULT_ARM = "wx250s"
+
+EXAMPLES = """\
+examples:
+  retarget replay                                  the demo clip on wx250s, in-process simulated bus, real time
+  retarget replay --fast --json                    as fast as possible (virtual clock), summary as JSON on stdout
+  retarget replay dance.bvh --start 2 --end 300f   seconds or frames (suffix f) of the clip
+  retarget replay dance.bvh --side left --speed 0.5 --telemetry run.csv
+  retarget replay dance.bvh --dry-run --fast       solve every tick, no bus
+  retarget replay dance.bvh --arm vx300s --port /dev/ttyUSB0 --shutdown rest
+  retarget replay --port 'sim://wx250s?drop=0.05&seed=1'   a simulated bus with faults, by URL
+"""
+
+
+# --------------------------------------------------------------------------------------------- shared options
+
+
+def add_clip_arguments(parser: argparse.ArgumentParser) -> None:
+    """CLIP, --arm, the clip window and the tick rate (shared with ``export``)."""
+    parser.add_argument("clip", nargs="?", metavar="CLIP", help="BVH file (default: the bundled demo clip)")
+    parser.add_argument("--arm", default=DEFAULT_ARM, help=f"arm name or TOML/URDF path (default {DEFAULT_ARM})")
+    parser.add_argument("--rate", default="100", metavar="HZ", help="control ticks per second (default 100)")
+    parser.add_argument("--speed", default="1", metavar="F", help="playback speed factor (default 1)")
+    parser.add_argument("--start", default=None, metavar="T", help="clip window start: seconds, or frames as 300f")
+    parser.add_argument("--end", default=None, metavar="T", help="clip window end: seconds, or frames as 300f")
+
+
+def add_mapping_arguments(parser: argparse.ArgumentParser) -> None:
+    """Flags overriding the arm file's ``[mapping]`` table (see ``retarget.mapping``)."""
+    g = parser.add_argument_group("mapping (overrides the arm file's [mapping] table)")
+    g.add_argument("--side", choices=("left", "right"), default=None, help="which human arm drives the robot")
+    g.add_argument(
+        "--forward",
+        default=None,
+        metavar="AXIS",
+        help="fixed BVH forward axis +z|-z|+x|-x instead of the torso's facing direction (auto)",
+    )
+    g.add_argument("--up", default=None, metavar="AXIS", help="BVH up axis (default +y)")
+    g.add_argument("--arm-scale", default=None, metavar="F", help="human arm length -> this fraction of the reach")
+    g.add_argument("--origin", default=None, metavar="X,Y,Z", help="where the human shoulder lands, metres, base frame")
+    g.add_argument("--floor", default=None, metavar="Z", help="lowest target height, metres")
+    g.add_argument("--orientation-weight", default=None, metavar="W", help="0 = position only; > 0 hand orientation")
+    g.add_argument("--velocity-scale", default="1", metavar="F", help="fraction of each joint's max speed (default 1)")
+
+
+_TIME = re.compile(r"^\s*(\d+(?:\.\d*)?|\.\d+)\s*(s|f)?\s*$", re.IGNORECASE)
+
+
+def parse_clip_time(text: str | None, *, frame_time: float, option: str) -> float | None:
+    """``"2.5"``/``"2.5s"`` seconds or ``"300f"`` frames -> seconds; ConfigError naming the option."""
+    if text is None:
+        return None
+    m = _TIME.match(text)
+    if not m:
+        raise ConfigError("Expected seconds (2.5, 2.5s) or frames (300f)", key=option, value=text)
+    value = float(m.group(1))
+    return value * frame_time if (m.group(2) or "s").lower() == "f" else value
+
+
+@dataclass(frozen=True)
+class Inputs:
+    clip: Path
+    motion: Motion
+    arm: Arm
+    targets: Targets
+
+
+def load_inputs(args: argparse.Namespace) -> Inputs:
+    """Load the clip and the arm, build the mapping from the arm file + flags, and map every frame."""
+    import retarget
+    from retarget.mapping import MappingConfig, retarget_targets
+
+    if args.clip is None:
+        from retarget.bvh import DEMO_CLIP
+
+        clip = Path(DEMO_CLIP)
+    else:
+        clip = Path(args.clip)
+    arm = retarget.load_arm(args.arm)
+    overrides = {
+        "side": args.side,
+        "forward": args.forward,
+        "up": args.up,
+        "arm_scale": args.arm_scale,
+        "origin": args.origin,
+        "floor": args.floor,
+        "orientation_weight": args.orientation_weight,
+    }
+    config = MappingConfig.from_table(arm.mapping, path=arm.source, overrides=_flag_names(overrides))
+    motion = retarget.load_bvh(clip)
+    targets = retarget_targets(motion, arm, config)
+    return Inputs(clip=clip, motion=motion, arm=arm, targets=targets)
+
+
+def _flag_names(overrides: dict[str, Any]) -> dict[str, Any]:
+    """Validate flag values one by one so an error names the flag (``--floor``), not the mapping key."""
+    from retarget.mapping import MappingConfig
+
+    out = {}
+    for name, value in overrides.items():
+        if value is None:
+            continue
+        try:
+            MappingConfig.from_table({}, overrides={name: value})
+        except ConfigError as exc:
+            raise ConfigError(exc.message, key="--" + name.replace("_", "-"), value=value) from None
+        out[name] = value
+    return out
+
+
+def number(text: str | None, *, option: str, integer: bool = False) -> float | int | None:
+    """An option's text -> float (or int); ConfigError naming the option."""
+    if text is None:
+        return None
+    try:
+        return int(text) if integer else float(text)
+    except ValueError:
+        raise ConfigError(f"Expected {'an integer' if integer else 'a number'}", key=option, value=text) from None
+
+
+def loop_config(args: argparse.Namespace, motion: Motion, **extra: Any) -> LoopConfig:
+    """A :class:`~retarget.control.LoopConfig` from the shared options."""
+    from retarget.control import LoopConfig
+
+    return LoopConfig(
+        rate=number(args.rate, option="--rate"),
+        speed=number(args.speed, option="--speed"),
+        start=parse_clip_time(args.start, frame_time=motion.frame_time, option="--start") or 0.0,
+        end=parse_clip_time(args.end, frame_time=motion.frame_time, option="--end"),
+        velocity_scale=number(args.velocity_scale, option="--velocity-scale"),
+        **extra,
+    )
+
+
+# --------------------------------------------------------------------------------------------- replay
+
+
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+    parser = subparsers.add_parser(
+        "replay",
+        help="play a BVH clip's arm motion on an arm (simulated by default)",
+        description=__doc__.split("\n\n")[0].split(": ", 1)[1],
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    add_clip_arguments(parser)
+    parser.add_argument(
+        "--port",
+        default=None,
+        help="serial port or pyserial URL: /dev/ttyUSB0, COM3, socket://h:p, sim://ARM?... "
+        "(default: an in-process simulated bus)",
+    )
+    parser.add_argument("--loop", action="store_true", help="wrap to --start after --end until Ctrl-C")
+    parser.add_argument("--max-ticks", default=None, metavar="N", help="stop after N ticks")
+    parser.add_argument("--fast", action="store_true", help="as fast as possible on a virtual clock (simulator only)")
+    parser.add_argument("--dry-run", action="store_true", help="solve every tick without any bus")
+    parser.add_argument(
+        "--shutdown",
+        choices=("hold", "rest", "off"),
+        default="rest",
+        help="on exit/Ctrl-C: hold the last goal, move to rest then torque off (default), or torque off",
+    )
+    parser.add_argument("--telemetry", default=None, metavar="CSV", help="write one CSV row per tick ('-' = stdout)")
+    parser.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+    parser.add_argument("--progress", action="store_true", help="progress lines on stderr even when not a TTY")
+    add_mapping_arguments(parser)
+    return parser
+
+
+def is_sim_port(port: str | None) -> bool:
+    return port is None or port.startswith("sim://")
+
+
+@contextmanager
+def _sigint_stops(loop: ControlLoop) -> Iterator[None]:
+    """First Ctrl-C: stop at the next tick boundary; a second one interrupts at once."""
+    try:
+        previous = signal.getsignal(signal.SIGINT)
+    except ValueError:  # not the main thread
+        yield
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        print("retarget: stopping (Ctrl-C again to interrupt)", file=sys.stderr)
+        loop.stop()
+
+    try:
+        signal.signal(signal.SIGINT, handler)
+    except ValueError:
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _progress_printer(loop: ControlLoop) -> Callable[[TickRecord], None]:
+    total = loop.n_ticks
+    start, end = loop.window
+
+    def show(r: TickRecord) -> None:
+        pct = f" {100.0 * r.tick / total:3.0f}%" if total else ""
+        print(
+            f"retarget:{pct} t={r.time:6.1f} s  clip {r.clip_time:6.2f}/{end:.2f} s  IK {r.ik_error * 1e3:5.2f} mm",
+            file=sys.stderr,
+            flush=True,
+        )
+
+    return show
+
+
+def build_bus(args: argparse.Namespace, arm: Arm, clock: Clock) -> Bus:
+    """The bus of a replay: the driver on ``--port``, or on an in-process simulated bus sharing ``clock``."""
+    from drivers import DynamixelBus
+
+    port = args.port
+    if port is None:
+        import sim
+
+        port = sim.attach(sim.SimBus.from_arm(arm, clock=clock))
+    return DynamixelBus(arm, port, shutdown=args.shutdown, clock=clock)
+
+
+def run(args: argparse.Namespace) -> int:
+    from retarget.cli import EXIT_INTERRUPTED
+    from retarget.clock import MonotonicClock, VirtualClock
+    from retarget.control import ControlLoop
+    from retarget.telemetry import TelemetryWriter
+
+    if args.fast and not is_sim_port(args.port):
+        raise ConfigError("--fast needs the simulated bus (a sim:// port or none), not a real port", key="--port",
+                          value=args.port)  # fmt: skip
+    if args.dry_run and args.port is not None:
+        raise ConfigError("--dry-run uses no bus; drop --port", key="--port", value=args.port)
+    if args.telemetry == "-" and args.json:
+        raise ConfigError("--telemetry - and --json both write to stdout; give the telemetry a file", key="--telemetry",
+                          value=args.telemetry)  # fmt: skip
+    inputs = load_inputs(args)
+    config = loop_config(
+        args,
+        inputs.motion,
+        loop=args.loop,
+        max_ticks=number(args.max_ticks, option="--max-ticks", integer=True),
+    )
+    clock: Clock = VirtualClock() if args.fast else MonotonicClock()
+    telemetry = None
+    if args.telemetry is not None:
+        telemetry = TelemetryWriter(sys.stdout if args.telemetry == "-" else args.telemetry, inputs.arm.joint_names)
+    loop = ControlLoop(inputs.arm, inputs.targets, config=config, clock=clock, clip_name=inputs.clip.name)
+    if args.progress or sys.stderr.isatty():
+        loop.on_progress = _progress_printer(loop)
+    bus = None if args.dry_run else build_bus(args, inputs.arm, clock)
+    try:
+        if telemetry is not None:
+            telemetry.open()
+            loop.on_tick = telemetry
+        with _sigint_stops(loop):
+            if bus is None:
+                summary = loop.run(None)
+            else:
+                bus.connect()
+                try:
+                    summary = loop.run(bus)
+                finally:
+                    bus.close()
+    finally:
+        if telemetry is not None:
+            telemetry.close()
+    print(summary.format(), file=sys.stderr)
+    if args.json:
+        json.dump(summary.to_dict(), sys.stdout, indent=2)
+        sys.stdout.write("\n")
+    return EXIT_INTERRUPTED if summary.interrupted else 0
