@@ -55,6 +55,7 @@ __all__ = ["IKResult", "CCDSolver", "Weighting", "solve_ik", "joint_weights"]
 _atan2 = math.atan2
 _cos = math.cos
 _sin = math.sin
+_DEFAULT = object()
 _EPS2 = 1e-16  #: |u⊥|^2 |v⊥|^2 below this (m^4): the joint cannot move the tool toward the target
 
 
@@ -143,8 +144,17 @@ class CCDSolver:
       position terms (default 1); ``orientation_tolerance``: radians (default 0.01);
     - ``restarts``: how many new seeds may be tried after stalls (default 16);
       ``stall_ratio``: a sweep that leaves more than this fraction of the squared error
-      is a stall (default 0.99); ``seed``: seeds the pseudo-random restarts, so a solve is a
-      pure function of its inputs.
+      is a stall (default 0.99); ``accel_ratio``: a sweep that leaves more than this fraction
+      of the squared error is followed by a line search along its step (default 0.5; 0 turns
+      it off); ``max_step``: radians, a trust region: no joint moves more than this from
+      ``q0`` in one solve (default None: only the limits).  For warm-started control ticks
+      (e.g. ``0.05``) it keeps the motion smooth where a joint has a short lever (a forearm roll
+      with the wrist straight) and CCD would swing it far for a millimetre; ``seed``: seeds the
+      pseudo-random restarts, so a solve is a pure function of its inputs;
+    - ``short_lever``: metres (default 0.2 x the arm's reach): a joint whose lever |u⊥| (the
+      tool's distance from its axis) is shorter takes only ``|u⊥| / short_lever`` of its
+      update, like a Jacobian-transpose step scaled by the column norm.  This keeps a forearm
+      roll with a straight wrist from swinging far for a millimetre; 0 turns it off.
     """
 
     def __init__(
@@ -160,6 +170,9 @@ class CCDSolver:
         restarts: int = 16,
         stall_ratio: float = 0.99,
         seed: int = 0,
+        accel_ratio: float = 0.5,
+        max_step: float | None = None,
+        short_lever: float | None = None,
     ):
         self.arm = arm
         n = self.n = arm.n_joints
@@ -173,8 +186,14 @@ class CCDSolver:
             raise ConfigError("stall_ratio must lie in (0, 1)", key="stall_ratio", value=stall_ratio)
         self.stall_ratio = float(stall_ratio)
         self.seed = seed
+        if not 0 <= accel_ratio < 1:
+            raise ConfigError("accel_ratio must lie in [0, 1)", key="accel_ratio", value=accel_ratio)
+        self.accel_ratio = float(accel_ratio) if accel_ratio > 0 else math.inf
+        self._accel_steps = 5
+        self.max_step = None if max_step is None else _positive(max_step, "max_step")
         self.lower = tuple(float(j.lower) for j in arm.joints)
         self.upper = tuple(float(j.upper) for j in arm.joints)
+        self._lo, self._hi = self.lower, self.upper  # the bounds of the current solve
         # per joint: origin translation, origin rotation (None when identity), axis, principal kind/sign
         joints = []
         for j in arm.joints:
@@ -188,6 +207,8 @@ class CCDSolver:
         lengths = [math.dist((0, 0, 0), jt[0]) for jt in joints[1:]] + [math.dist((0, 0, 0), self._tool)]
         self.reach = sum(lengths)
         self.base_pivot = tuple(map(float, arm.joints[0].origin_xyz))
+        self.short_lever = 0.2 * self.reach if short_lever is None else _positive(short_lever, "short_lever", zero=True)
+        self._lever2 = self.short_lever**2
         # scratch buffers, reused by every solve (a solver is not thread-safe)
         self._px = [0.0] * n
         self._py = [0.0] * n
@@ -269,11 +290,12 @@ class CCDSolver:
         *,
         tolerance: float | None = None,
         max_iterations: int | None = None,
+        max_step: float | None | object = _DEFAULT,
     ) -> IKResult:
         """Solve for the tool point at ``target`` ``(3,)`` metres, starting from ``q0`` ``(n_joints,)`` radians.
 
         ``rotation``: optional ``(3, 3)`` target orientation of the tool frame (base frame).
-        ``tolerance``/``max_iterations`` override the solver's defaults for this call.
+        ``tolerance``/``max_iterations``/``max_step`` override the solver's defaults for this call.
         ``q0`` outside the limits is clipped first.  Raises ``ValueError`` for bad shapes or
         non-finite input.
         """
@@ -282,6 +304,13 @@ class CCDSolver:
         q = _joint_vector(q0, n)
         lower, upper = self.lower, self.upper
         q = [lo if v < lo else hi if v > hi else v for v, lo, hi in zip(q, lower, upper, strict=True)]
+        step = self.max_step if max_step is _DEFAULT else max_step
+        if step is None:
+            self._lo, self._hi = lower, upper
+        else:  # a trust region around q0: no joint moves more than `step` in this solve
+            step = _positive(step, "max_step")
+            self._lo = tuple(lo if v - step < lo else v - step for v, lo in zip(q, lower, strict=True))
+            self._hi = tuple(hi if v + step > hi else v + step for v, hi in zip(q, upper, strict=True))
         tol = self.tolerance if tolerance is None else _positive(tolerance, "tolerance")
         budget = self.max_iterations if max_iterations is None else _count(max_iterations, "max_iterations", zero=True)
         if rotation is not None:
@@ -303,9 +332,13 @@ class CCDSolver:
         sweeps = 0
         sweep = self._sweep
         stall = self.stall_ratio
+        accel = self.accel_ratio
         while sweeps < budget:
             sweeps += 1
+            before = q[:]
             err2 = sweep(q, tx, ty, tz, tol2)
+            if err2 > tol2 and err2 > prev2 * accel:  # slow progress: extrapolate along the sweep's step
+                err2 = self._extrapolate(q, before, err2, tx, ty, tz)
             if err2 < best2:
                 best_q, best2 = q[:], err2
                 if err2 <= tol2:
@@ -318,24 +351,49 @@ class CCDSolver:
                     restarts += 1
                     if rng is None:
                         rng = random.Random(self.seed)
-                    q = self._restart_seed(restarts, best_q, tx, ty, rng)
+                    q = self._restart_seed(rng)
                     f = self._fk(q)
                     dx, dy, dz = f[0] - tx, f[1] - ty, f[2] - tz
                     err2 = dx * dx + dy * dy + dz * dz
             prev2 = err2
         return IKResult(np.array(best_q), math.sqrt(best2), sweeps, best2 <= tol2, restarts=restarts)
 
-    def _restart_seed(self, k: int, best: list[float], tx: float, ty: float, rng: random.Random) -> list[float]:
-        """Seed ``k`` (1-based) of a restart: uniformly random inside the limits, waist kept from the best pose."""
-        q = [rng.uniform(lo, hi) for lo, hi in zip(self.lower, self.upper, strict=True)]
-        q[0] = best[0]
-        return q
+    def _extrapolate(self, q: list[float], before: list[float], err2: float, tx: float, ty: float, tz: float) -> float:
+        """Line search along the last sweep's step ``q - before``: try ``q + alpha (q - before)``, alpha = 2, 4, 8, ...
+
+        CCD crawls along narrow valleys (a stretched arm, a folded wrist); the sweep's own
+        step points along the valley.  Each trial is clamped to the limits and kept only
+        while it lowers the distance, so this never makes a solve worse.  Updates ``q`` in
+        place and returns the squared distance.
+        """
+        lower, upper = self._lo, self._hi
+        step = [a - b for a, b in zip(q, before, strict=True)]
+        alpha = 2.0
+        for _ in range(self._accel_steps):
+            trial = [
+                lo if v < lo else hi if v > hi else v
+                for v, lo, hi in zip([a + alpha * d for a, d in zip(q, step, strict=True)], lower, upper, strict=True)
+            ]
+            f = self._fk(trial)
+            dx, dy, dz = f[0] - tx, f[1] - ty, f[2] - tz
+            e2 = dx * dx + dy * dy + dz * dz
+            if e2 >= err2:
+                break
+            q[:] = trial
+            err2 = e2
+            alpha *= 2.0
+        return err2
+
+    def _restart_seed(self, rng: random.Random) -> list[float]:
+        """A restart seed: uniform inside the limits (the first sweep then turns the waist to the target)."""
+        return [rng.uniform(lo, hi) for lo, hi in zip(self._lo, self._hi, strict=True)]
 
     def _sweep(self, q: list[float], tx: float, ty: float, tz: float, tol2: float) -> float:
         """One tip-to-base sweep on ``q`` (in place); returns the squared distance after it."""
         ex, ey, ez = self._fk(q)[:3]
         px, py, pz, ax, ay, az = self._px, self._py, self._pz, self._ax, self._ay, self._az
-        lower, upper, w = self.lower, self.upper, self.weights
+        lower, upper, w = self._lo, self._hi, self.weights
+        lev2 = self._lever2
         for j in range(self.n - 1, -1, -1):
             x0, y0, z0 = px[j], py[j], pz[j]
             ux, uy, uz = ex - x0, ey - y0, ez - z0
@@ -348,7 +406,11 @@ class CCDSolver:
             if dot * dot + cross * cross < _EPS2:
                 continue
             old = q[j]
-            new = old + w[j] * _atan2(cross, dot)
+            lever2 = cx * cx + cy * cy + cz * cz  # |u⊥|^2
+            if lever2 < lev2:  # a short lever: damp in proportion, the joint buys little for a big swing
+                new = old + w[j] * _atan2(cross, dot) * math.sqrt(lever2 / lev2)
+            else:
+                new = old + w[j] * _atan2(cross, dot)
             if new < lower[j]:
                 new = lower[j]
             elif new > upper[j]:
@@ -372,6 +434,7 @@ class CCDSolver:
     def _solve_pose(self, tx, ty, tz, rot, q, tol, budget) -> IKResult:
         """Position + orientation CCD (Wang & Chen), see the module docstring."""
         rtol = self.orientation_tolerance
+        lower, upper = self._lo, self._hi
         d = rot  # desired tool axes: columns of rot, as rows d[i] = column i
         dcols = ((d[0][0], d[1][0], d[2][0]), (d[0][1], d[1][1], d[2][1]), (d[0][2], d[1][2], d[2][2]))
 
@@ -411,7 +474,7 @@ class CCDSolver:
                     k3 += wo * (kx * (hy * gz - hz * gy) + ky * (hz * gx - hx * gz) + kz * (hx * gy - hy * gx))
                 phi = _atan2(k3, k2 - k1)
                 old = q[j]
-                new = min(max(old + self.weights[j] * phi, self.lower[j]), self.upper[j])
+                new = min(max(old + self.weights[j] * phi, lower[j]), upper[j])
                 dq = new - old
                 if dq == 0.0:
                     continue
