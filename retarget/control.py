@@ -7,7 +7,9 @@ time ``start + k * speed / rate`` (wrapped into ``[start, end)`` with
 1. takes the target at its clip time (frames resampled to ticks by linear
    interpolation, then pulled into the workspace; precomputed before the loop);
 2. solves IK with the arm's :class:`~retarget.ik.CCDSolver`, warm-started from
-   the last solution, within ``ik_iterations`` sweeps (the per-tick budget);
+   the last commanded solution (where the arm is going, so a velocity-limited
+   tick does not let IK wander off), within ``ik_iterations`` sweeps (the
+   per-tick budget), with the mapping's per-joint weights;
 3. limits each joint's step to ``velocity_scale x max_velocity x elapsed``;
 4. sends the goals in one ``bus.write_goals``;
 5. reads the present positions back with ``bus.read_positions``.
@@ -141,13 +143,14 @@ class ControlLoop:
         self.targets = targets
         self.config = config = config or LoopConfig()
         self.clock: Clock = clock if clock is not None else MonotonicClock()
-        if solver is None:
-            from retarget.ik import CCDSolver
+        from retarget.ik import CCDSolver
+        from retarget.mapping import ik_weights
 
-            kwargs = {}
-            if targets.rotations is not None:
-                kwargs["orientation_weight"] = targets.config.orientation_weight
-            solver = CCDSolver(arm, tolerance=config.ik_tolerance, max_iterations=config.ik_iterations, **kwargs)
+        self._solver_kwargs = {"tolerance": config.ik_tolerance, "weights": ik_weights(arm, targets.config)}
+        if targets.rotations is not None:
+            self._solver_kwargs["orientation_weight"] = targets.config.orientation_weight
+        if solver is None:
+            solver = CCDSolver(arm, max_iterations=config.ik_iterations, **self._solver_kwargs)
         self.solver = solver
         self.on_tick = on_tick
         self.on_progress = on_progress
@@ -191,7 +194,7 @@ class ControlLoop:
         """The IK solution of the first target, solved cold from home with a large budget: ``(n_joints,)`` rad."""
         from retarget.ik import CCDSolver
 
-        solver = CCDSolver(self.arm, tolerance=self.config.ik_tolerance, max_iterations=iterations)
+        solver = CCDSolver(self.arm, max_iterations=iterations, **self._solver_kwargs)
         rotation = None if self._rotations is None else self._rotations[0]
         return np.array(solver.solve(self._positions[0], self.arm.home, rotation).q, dtype=np.float64)
 
@@ -254,7 +257,7 @@ class ControlLoop:
                 i = k % n_pre if cfg.loop else k
                 target = positions[i]
                 rotation = None if rotations is None else rotations[i]
-                result = solve(target, q_ik, rotation)
+                result = solve(target, q_cmd, rotation)
                 q_ik = result.q
                 elapsed = k - last_slot if last_slot >= 0 else 1
                 delta = q_ik - q_cmd

@@ -56,6 +56,7 @@ __all__ = [
     "Workspace",
     "arm_geometry",
     "body_frames",
+    "ik_weights",
     "map_points",
     "retarget_targets",
 ]
@@ -102,12 +103,14 @@ class MappingConfig:
     side: Side = Side.RIGHT  #: which human arm drives the robot
     forward: Axis = Axis.AUTO  #: body forward: AUTO = per frame from the torso; else a fixed BVH axis
     up: Axis = Axis.PY  #: BVH up axis, used with a fixed ``forward`` and for the hand orientation
-    arm_scale: float = 0.5  #: the human's full arm length maps to this fraction of the robot's reach
+    arm_scale: float = 0.42  #: the human's full arm length maps to this fraction of the robot's reach
     origin: tuple[float, float, float] | None = None  #: where the shoulder lands; None = default_origin()
     max_reach: float = 0.95  #: outer radius of the workspace shell, fraction of reach
     min_reach: float = 0.2  #: inner radius, fraction of reach
     floor: float = 0.03  #: lowest target z, metres above the base frame origin
     orientation_weight: float = 0.0  #: 0 = position only; > 0 also targets the tool orientation
+    #: IK per-joint weights in (0, 1]: ``{joint: w}`` overriding the defaults (see :func:`ik_weights`), or all of them
+    joint_weights: tuple[tuple[str, float], ...] | tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -155,8 +158,8 @@ class MappingConfig:
         return replace(self, **values)
 
     def default_origin(self, geometry: ArmGeometry) -> np.ndarray:
-        """``(3,)`` metres: 0.4 reach in front of and 0.1 reach above the shoulder pivot."""
-        return geometry.pivot + geometry.reach * np.array([0.4, 0.0, 0.1])
+        """``(3,)`` metres: 0.3 reach in front of and 0.32 reach above the shoulder pivot."""
+        return geometry.pivot + geometry.reach * np.array([0.3, 0.0, 0.32])
 
 
 def _convert(name: str, raw: Any, *, key: str, path: str | PathLike[str] | None) -> Any:
@@ -174,6 +177,15 @@ def _convert(name: str, raw: Any, *, key: str, path: str | PathLike[str] | None)
             if text not in choices:
                 raise ValueError
             return Axis(text)
+        if name == "joint_weights":
+            if isinstance(raw, Mapping):
+                items = tuple((str(k), float(v)) for k, v in raw.items())
+                values = [v for _, v in items]
+            else:
+                items = values = tuple(float(v) for v in (raw.split(",") if isinstance(raw, str) else raw))
+            if not values or not all(0 < v <= 1 for v in values):
+                raise ValueError
+            return items
         if name == "origin":
             if isinstance(raw, str):
                 raw = raw.split(",")
@@ -197,6 +209,7 @@ _EXPECTED = {
     "min_reach": "a fraction in [0, 1)",
     "floor": "a finite number of metres",
     "orientation_weight": "a number >= 0",
+    "joint_weights": "weights in (0, 1]: a table {joint = w} or one number per joint",
 }
 
 
@@ -208,6 +221,8 @@ def _check(name: str, value: Any, *, key: str, path: str | PathLike[str] | None)
         ok = isinstance(value, Axis) and (name == "forward" or value is not Axis.AUTO)
     elif name == "origin":
         ok = value is None or (len(value) == 3 and all(math.isfinite(v) for v in value))
+    elif name == "joint_weights":
+        ok = value is None or isinstance(value, tuple)
     else:
         ok = isinstance(value, int | float) and math.isfinite(value)
         if ok and name == "arm_scale":
@@ -248,6 +263,71 @@ def arm_geometry(arm: Arm) -> ArmGeometry:
             break
     segments = np.diff(points[k:], axis=0)
     return ArmGeometry(pivot=np.array(points[k], dtype=np.float64), reach=float(np.linalg.norm(segments, axis=1).sum()))
+
+
+#: default IK weight of a roll joint (its axis runs through the tool point, so it barely moves it)
+ROLL_WEIGHT = 1e-3
+#: default IK weight of the wrist joints beyond the elbow (keeps the wrist from churning)
+WRIST_WEIGHT = 0.3
+
+
+def ik_weights(arm: Arm, config: MappingConfig) -> np.ndarray:
+    """Per-joint CCD weights ``(n_joints,)`` in ``(0, 1]`` for following this mapping's targets.
+
+    Position only (``orientation_weight == 0``), a 6-DOF arm is redundant and CCD's
+    exact per-joint steps make the redundant joints churn (a roll joint near a
+    singularity swings by radians for a millimetre).  So by default a *roll* joint
+    (its axis within 25 degrees of the line from its pivot to the tool, at home) gets
+    ``ROLL_WEIGHT`` (it stays put) and joints after the third get ``WRIST_WEIGHT``;
+    with an orientation target every joint gets 1.  ``config.joint_weights``
+    overrides them by joint name, or gives all of them.
+    """
+    n = arm.n_joints
+    weights = np.ones(n)
+    if config.orientation_weight == 0:
+        _, points = arm.fk(arm.home)
+        tool = points[-1]
+        rotations = _joint_rotations(arm, arm.home)
+        for i in range(n):
+            axis = rotations[i] @ np.asarray(arm.joints[i].axis, dtype=np.float64)
+            lever = tool - points[i]
+            length = np.linalg.norm(lever)
+            if length > 1e-9 and abs(axis @ lever) / (np.linalg.norm(axis) * length) > math.cos(math.radians(25)):
+                weights[i] = ROLL_WEIGHT
+            elif i >= 3:
+                weights[i] = WRIST_WEIGHT
+    given = config.joint_weights
+    if given:
+        if isinstance(given[0], tuple):
+            names = arm.joint_names
+            for name, w in given:  # type: ignore[misc]
+                if name not in names:
+                    raise ConfigError(
+                        f"unknown joint; expected one of {', '.join(names)}",
+                        path=arm.source,
+                        key=f"mapping.joint_weights.{name}",
+                    )
+                weights[names.index(name)] = w
+        else:
+            if len(given) != n:
+                raise ConfigError(
+                    f"Expected {n} joint weights", path=arm.source, key="mapping.joint_weights", value=list(given)
+                )
+            weights = np.asarray(given, dtype=np.float64)
+    return weights
+
+
+def _joint_rotations(arm: Arm, q: np.ndarray) -> list[np.ndarray]:
+    """Base-frame rotation of each joint's child frame at ``q``, before its own rotation (so ``R @ axis`` is world)."""
+    from retarget.kinematics import axis_angle_matrix, rpy_matrix
+
+    R = np.eye(3)
+    out = []
+    for joint, angle in zip(arm.joints, q, strict=True):
+        R = R @ rpy_matrix(joint.origin_rpy)
+        out.append(R.copy())
+        R = R @ axis_angle_matrix(np.asarray(joint.axis, dtype=np.float64) / np.linalg.norm(joint.axis), angle)
+    return out
 
 
 @dataclass(frozen=True)
