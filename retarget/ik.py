@@ -431,64 +431,99 @@ class CCDSolver:
         return dx * dx + dy * dy + dz * dz
 
     # ---------------------------------------------------------------------------------------------------------------
-    def _solve_pose(self, tx, ty, tz, rot, q, tol, budget) -> IKResult:
-        """Position + orientation CCD (Wang & Chen), see the module docstring."""
+    def _solve_pose(self, tx: float, ty: float, tz: float, rot: tuple, q: list[float], tol: float, budget: int):
+        """Position + orientation CCD (Wang & Chen), with the same line search and restarts as position-only.
+
+        Progress is measured by the cost ``(distance / reach)^2 + orientation_weight * (3 - tr(R^T R_target))``.
+        """
         rtol = self.orientation_tolerance
-        lower, upper = self._lo, self._hi
-        d = rot  # desired tool axes: columns of rot, as rows d[i] = column i
-        dcols = ((d[0][0], d[1][0], d[2][0]), (d[0][1], d[1][1], d[2][1]), (d[0][2], d[1][2], d[2][2]))
-
-        def errors(f):
-            dx, dy, dz = f[0] - tx, f[1] - ty, f[2] - tz
-            return math.sqrt(dx * dx + dy * dy + dz * dz), _angle(f[3:], d)
-
-        perr, oerr = errors(self._fk(q))
-        best_q, best = q[:], (perr, oerr)
-        sweeps = 0
-        scale = 1.0 / (self.reach * self.reach)
         wo = self.orientation_weight
-        px, py, pz, ax, ay, az = self._px, self._py, self._pz, self._ax, self._ay, self._az
+        inv_reach2 = 1.0 / (self.reach * self.reach)
+
+        def measure(qq: list[float]) -> tuple[float, float, float]:
+            f = self._fk(qq)
+            dx, dy, dz = f[0] - tx, f[1] - ty, f[2] - tz
+            d2 = dx * dx + dy * dy + dz * dz
+            tr = sum(f[3 + 3 * i + k] * rot[i][k] for i in range(3) for k in range(3))
+            angle = math.acos(min(1.0, max(-1.0, (tr - 1.0) * 0.5)))
+            return d2 * inv_reach2 + wo * (3.0 - tr), math.sqrt(d2), angle
+
+        cost, perr, oerr = measure(q)
+        best_q, best = q[:], (cost, perr, oerr)
+        bx, by, bz = self.base_pivot
+        can_restart = math.dist((tx, ty, tz), (bx, by, bz)) < self.reach
+        sweeps = restarts = 0
+        rng: random.Random | None = None
+        lower, upper = self._lo, self._hi
         while not (perr <= tol and oerr <= rtol) and sweeps < budget:
             sweeps += 1
-            f = self._fk(q)
-            ex, ey, ez = f[:3]
-            # current tool axes h_i: columns of the tool rotation
-            h = [[f[3], f[6], f[9]], [f[4], f[7], f[10]], [f[5], f[8], f[11]]]
-            for j in range(self.n - 1, -1, -1):
-                x0, y0, z0 = px[j], py[j], pz[j]
-                ux, uy, uz = ex - x0, ey - y0, ez - z0
-                vx, vy, vz = tx - x0, ty - y0, tz - z0
-                kx, ky, kz = ax[j], ay[j], az[j]
-                nu = math.sqrt(ux * ux + uy * uy + uz * uz)
-                nv = math.sqrt(vx * vx + vy * vy + vz * vz)
-                rho = min(nu, nv) / max(nu, nv, 1e-12)
-                wp = (1.0 + rho) * scale
-                au = kx * ux + ky * uy + kz * uz
-                av = kx * vx + ky * vy + kz * vz
-                k1 = wp * av * au
-                k2 = wp * (ux * vx + uy * vy + uz * vz)
-                k3 = wp * (kx * (uy * vz - uz * vy) + ky * (uz * vx - ux * vz) + kz * (ux * vy - uy * vx))
-                for (hx, hy, hz), (gx, gy, gz) in zip(h, dcols, strict=True):
-                    k1 += wo * (kx * gx + ky * gy + kz * gz) * (kx * hx + ky * hy + kz * hz)
-                    k2 += wo * (gx * hx + gy * hy + gz * hz)
-                    k3 += wo * (kx * (hy * gz - hz * gy) + ky * (hz * gx - hx * gz) + kz * (hx * gy - hy * gx))
-                phi = _atan2(k3, k2 - k1)
-                old = q[j]
-                new = min(max(old + self.weights[j] * phi, lower[j]), upper[j])
-                dq = new - old
-                if dq == 0.0:
-                    continue
-                q[j] = new
-                c, s = _cos(dq), _sin(dq)
-                ex, ey, ez = (x0 + r for r in _rotate(ux, uy, uz, kx, ky, kz, c, s))
-                h = [list(_rotate(hx, hy, hz, kx, ky, kz, c, s)) for hx, hy, hz in h]
-            perr, oerr = errors(self._fk(q))
-            if (perr <= tol) + (oerr <= rtol) > (best[0] <= tol) + (best[1] <= rtol) or (
-                perr + self.reach * oerr < best[0] + self.reach * best[1]
-            ):
-                best_q, best = q[:], (perr, oerr)
-        converged = best[0] <= tol and best[1] <= rtol
-        return IKResult(np.array(best_q), best[0], sweeps, converged, orientation_error=best[1])
+            before = q[:]
+            self._sweep_pose(q, tx, ty, tz, rot)
+            prev = cost
+            cost, perr, oerr = measure(q)
+            if cost > prev * self.accel_ratio:  # slow: line search along the sweep's step
+                step = [a - b for a, b in zip(q, before, strict=True)]
+                alpha = 2.0
+                for _ in range(self._accel_steps):
+                    trial = [
+                        min(max(a + alpha * d, lo), hi) for a, d, lo, hi in zip(q, step, lower, upper, strict=True)
+                    ]
+                    m = measure(trial)
+                    if m[0] >= cost:
+                        break
+                    q[:] = trial
+                    cost, perr, oerr = m
+                    alpha *= 2.0
+            if cost < best[0]:
+                best_q, best = q[:], (cost, perr, oerr)
+            if cost > prev * self.stall_ratio and not (perr <= tol and oerr <= rtol):
+                if not can_restart or restarts >= self.restarts:
+                    if cost >= prev:
+                        break
+                else:
+                    restarts += 1
+                    rng = rng or random.Random(self.seed)
+                    q = self._restart_seed(rng)
+                    cost, perr, oerr = measure(q)
+        _, perr, oerr = best
+        converged = perr <= tol and oerr <= rtol
+        return IKResult(np.array(best_q), perr, sweeps, converged, orientation_error=oerr, restarts=restarts)
+
+    def _sweep_pose(self, q: list[float], tx: float, ty: float, tz: float, rot: tuple) -> None:
+        """One tip-to-base position + orientation sweep on ``q`` in place: ``phi* = atan2(k3, k2 - k1)``."""
+        f = self._fk(q)
+        ex, ey, ez = f[0], f[1], f[2]
+        h = [(f[3], f[6], f[9]), (f[4], f[7], f[10]), (f[5], f[8], f[11])]  # current tool axes (columns)
+        g = [(rot[0][i], rot[1][i], rot[2][i]) for i in range(3)]  # desired tool axes (columns)
+        px, py, pz, ax, ay, az = self._px, self._py, self._pz, self._ax, self._ay, self._az
+        lower, upper, w = self._lo, self._hi, self.weights
+        scale = 1.0 / (self.reach * self.reach)
+        wo = self.orientation_weight
+        for j in range(self.n - 1, -1, -1):
+            x0, y0, z0 = px[j], py[j], pz[j]
+            ux, uy, uz = ex - x0, ey - y0, ez - z0
+            vx, vy, vz = tx - x0, ty - y0, tz - z0
+            kx, ky, kz = ax[j], ay[j], az[j]
+            nu = math.sqrt(ux * ux + uy * uy + uz * uz)
+            nv = math.sqrt(vx * vx + vy * vy + vz * vz)
+            wp = (1.0 + min(nu, nv) / max(nu, nv, 1e-12)) * scale
+            k1 = wp * (kx * vx + ky * vy + kz * vz) * (kx * ux + ky * uy + kz * uz)
+            k2 = wp * (ux * vx + uy * vy + uz * vz)
+            k3 = wp * (kx * (uy * vz - uz * vy) + ky * (uz * vx - ux * vz) + kz * (ux * vy - uy * vx))
+            for (hx, hy, hz), (gx, gy, gz) in zip(h, g, strict=True):
+                k1 += wo * (kx * gx + ky * gy + kz * gz) * (kx * hx + ky * hy + kz * hz)
+                k2 += wo * (gx * hx + gy * hy + gz * hz)
+                k3 += wo * (kx * (hy * gz - hz * gy) + ky * (hz * gx - hx * gz) + kz * (hx * gy - hy * gx))
+            old = q[j]
+            new = min(max(old + w[j] * _atan2(k3, k2 - k1), lower[j]), upper[j])
+            d = new - old
+            if d == 0.0:
+                continue
+            q[j] = new
+            c, s = _cos(d), _sin(d)
+            rx, ry, rz = _rotate(ux, uy, uz, kx, ky, kz, c, s)
+            ex, ey, ez = x0 + rx, y0 + ry, z0 + rz
+            h = [_rotate(hx, hy, hz, kx, ky, kz, c, s) for hx, hy, hz in h]
 
 
 # -------------------------------------------------------------------------------------------------------------------

@@ -23,7 +23,7 @@ import numpy as np
 if TYPE_CHECKING:
     from retarget.arm import Arm
 
-__all__ = ["Chain", "fk", "fk_batch", "rpy_matrix", "axis_angle_matrix", "transform"]
+__all__ = ["Chain", "fk", "fk_batch", "rpy_matrix", "matrix_rpy", "axis_angle_matrix", "transform"]
 
 
 def rpy_matrix(rpy: Sequence[float]) -> np.ndarray:
@@ -37,6 +37,23 @@ def rpy_matrix(rpy: Sequence[float]) -> np.ndarray:
             [-sp, cp * sr, cp * cr],
         ]
     )
+
+
+def matrix_rpy(R: np.ndarray) -> tuple[float, float, float]:
+    """URDF roll-pitch-yaw (radians) of a ``(3, 3)`` rotation; the inverse of :func:`rpy_matrix`.
+
+    At gimbal lock (pitch = +-pi/2) roll is set to 0.
+    """
+    R = np.asarray(R, dtype=np.float64)
+    pitch = float(np.arcsin(np.clip(-R[2, 0], -1.0, 1.0)))
+    if abs(R[2, 0]) < 1.0 - 1e-12:
+        roll = float(np.arctan2(R[2, 1], R[2, 2]))
+        yaw = float(np.arctan2(R[1, 0], R[0, 0]))
+    else:
+        roll = 0.0
+        yaw = float(np.arctan2(-R[0, 1], R[1, 1]))
+    clean = [0.0 if abs(v) < 1e-15 else v for v in (roll, pitch, yaw)]
+    return clean[0], clean[1], clean[2]
 
 
 def axis_angle_matrix(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
