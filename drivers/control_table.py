@@ -231,6 +231,7 @@ class Model:
     no_load_rpm: float  #: at ``nominal_voltage``
     nominal_voltage: float  #: volts, the recommended supply
     stall_torque: float  #: N*m at ``nominal_voltage``
+    stall_current: float  #: A at ``nominal_voltage``
     firmware: int  #: the Firmware Version (6) the simulator reports
     current_unit_ma: float | None  #: Present Current unit in mA; ``None`` when 126 is Present Load (0.1 %)
     operating_modes: tuple[OperatingMode, ...]
@@ -444,6 +445,7 @@ XL430_W250 = _model(
     no_load_rpm=57.0,
     nominal_voltage=11.1,
     stall_torque=1.4,
+    stall_current=1.3,
     firmware=46,
     current_unit_ma=None,
     operating_modes=(
@@ -475,6 +477,7 @@ XM430_W350 = _model(
     no_load_rpm=46.0,
     nominal_voltage=12.0,
     stall_torque=4.1,
+    stall_current=2.3,
     firmware=46,
     current_unit_ma=2.69,
     operating_modes=_ALL_MODES,
@@ -502,6 +505,7 @@ XL330_M288 = _model(
     no_load_rpm=103.0,
     nominal_voltage=5.0,
     stall_torque=0.52,
+    stall_current=1.47,
     firmware=46,
     current_unit_ma=1.0,
     operating_modes=_ALL_MODES,
@@ -537,6 +541,7 @@ XM540_W270 = _model(
     no_load_rpm=30.0,
     nominal_voltage=12.0,
     stall_torque=10.6,
+    stall_current=4.4,
     firmware=46,
     current_unit_ma=2.69,
     operating_modes=_ALL_MODES,

@@ -1,0 +1,415 @@
+"""A simulated Dynamixel bus: servos on one half-duplex wire, answering Protocol 2.0 instructions byte for byte.
+
+:meth:`SimBus.feed` takes the bytes a host wrote and returns the status packets the servos send back, each
+with the clock time its last byte is on the wire (:class:`Reply`).  The transports (``sim.transport`` in
+process, ``sim.server`` on a pty or TCP) deliver them at that time; :meth:`SimBus.handle` returns them at once
+for tests of the protocol alone.
+
+Instructions: PING (broadcast: every servo answers, in ID order), READ, WRITE, REG_WRITE, ACTION,
+FACTORY_RESET, REBOOT, CLEAR, SYNC_READ, SYNC_WRITE, FAST_SYNC_READ, BULK_READ, BULK_WRITE, FAST_BULK_READ.
+An unknown instruction answers Instruction Error (2); parameters of the wrong length answer Data Length
+Error (5).
+
+What the servos answer, as the e-Manual says:
+
+* Status Return Level 0: PING only; 1: PING and reads; 2 (default): everything.
+* Broadcast ID: no status for READ, WRITE, REG_WRITE, ACTION, REBOOT, FACTORY_RESET, CLEAR (and
+  FACTORY_RESET 0xFF to broadcast is not executed, firmware >= 42).
+* Each status starts Return Delay Time after the previous byte on the wire; sync and bulk read replies
+  follow each other in the order of the instruction.  A servo that is missing, unplugged or whose reply is
+  lost does not stop the later plain replies; in a fast read, it cuts the shared packet short (the later
+  servos wait for it), which dynamixel-sdk sees as a corrupt packet.
+* A servo listens only at its own Baud Rate item when the line rate is known (``line_baud``).
+* Bad CRC: the servo addressed by a unicast instruction answers CRC Error (3), as the Protocol 2.0 error
+  table defines (set ``crc_error_reply=False`` to make servos ignore such packets instead); broadcast
+  packets with a bad CRC are ignored.  Bytes before a header, and broken headers, are skipped.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections import deque
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from drivers.control_table import BROADCAST_ID, MAX_ID, FactoryReset, Instruction, StatusError
+from retarget.clock import Clock, MonotonicClock
+from retarget.errors import ConfigError
+from sim.faults import Faults, ReplyFaults, wire_time
+from sim.protocol import Packet, PacketParser, build_fast_read_status, build_status
+from sim.servo import SimServo
+
+if TYPE_CHECKING:
+    from retarget.arm import Arm
+
+log = logging.getLogger(__name__)
+
+_READ_INSTRUCTIONS = frozenset({Instruction.READ})
+_ALWAYS_BROADCAST_SILENT = frozenset(
+    {
+        Instruction.READ,
+        Instruction.WRITE,
+        Instruction.REG_WRITE,
+        Instruction.ACTION,
+        Instruction.REBOOT,
+        Instruction.FACTORY_RESET,
+        Instruction.CLEAR,
+    }
+)
+
+
+@dataclass(frozen=True)
+class Reply:
+    """A status packet on the wire: its bytes, the servo that sent it, the clock time its last byte arrives."""
+
+    due: float
+    data: bytes
+    id: int
+
+
+@dataclass(frozen=True)
+class LogEntry:
+    """One instruction the bus received: clock time, target ID, instruction byte, unstuffed parameters."""
+
+    t: float
+    id: int
+    instruction: int
+    params: bytes
+    crc_ok: bool = True
+
+
+class SimBus:
+    """Servos sharing one wire.  Build with :meth:`from_arm` or :meth:`from_ids`; see the module docstring."""
+
+    def __init__(
+        self,
+        servos: Iterable[SimServo],
+        *,
+        clock: Clock | None = None,
+        baud: int = 1_000_000,
+        faults: Faults | None = None,
+        crc_error_reply: bool = True,
+    ):
+        self._servos: list[SimServo] = list(servos)
+        self.clock: Clock = (
+            clock if clock is not None else (self._servos[0].clock if self._servos else MonotonicClock())
+        )
+        for servo in self._servos:
+            if servo.clock is not self.clock:
+                raise ValueError(f"servo {servo.id} runs on another clock than the bus")
+        ids = [s.id for s in self._servos]
+        if len(set(ids)) != len(ids):
+            raise ConfigError("Expected distinct servo IDs", key="ids", value=ids)
+        self.baud = int(baud)  #: bps of the wire, for the wire-time model
+        self.line_baud: int | None = None  #: the host port's rate when known; servos at another rate stay deaf
+        self.faults = faults if faults is not None else Faults()
+        self.crc_error_reply = crc_error_reply
+        self.log: deque[LogEntry] = deque(maxlen=100_000)  #: the last instructions received
+        self._parser = PacketParser()
+        self._lock = threading.RLock()
+        self.t_start = self.clock.now()
+        self._apply_scheduled_faults()
+
+    # ------------------------------------------------------------------ constructors
+
+    @classmethod
+    def from_ids(
+        cls,
+        ids: Iterable[int],
+        model: str = "XL430-W250",
+        *,
+        clock: Clock | None = None,
+        baud: int = 1_000_000,
+        return_delay_time: int | None = None,
+        position: float = 2048.0,
+        faults: Faults | None = None,
+        **bus_options: object,
+    ) -> SimBus:
+        """Servos of one ``model`` with these IDs, set to ``baud``; every other item at its factory default."""
+        clock = clock if clock is not None else MonotonicClock()
+        servos = [
+            SimServo(model, i, clock=clock, baud=baud, return_delay_time=return_delay_time, position=position)
+            for i in ids
+        ]
+        return cls(servos, clock=clock, baud=baud, faults=faults, **bus_options)  # type: ignore[arg-type]
+
+    @classmethod
+    def from_arm(
+        cls,
+        arm: Arm | str,
+        *,
+        clock: Clock | None = None,
+        baud: int | None = None,
+        pose: Sequence[float] | None = None,
+        return_delay_time: int | None = None,
+        faults: Faults | None = None,
+        **bus_options: object,
+    ) -> SimBus:
+        """Every servo of ``arm`` (an Arm or a bundled arm name): joints, shadows and gripper, with their models.
+
+        The servos sit at ``pose`` (joint angles, rad; default the arm's rest pose), read through each servo's
+        direction and offset as the driver will configure them; the gripper at its centre.  ``baud``
+        defaults to the arm's.
+        """
+        from drivers.control_table import rad_to_pulses
+
+        if isinstance(arm, str):
+            import retarget
+
+            arm = retarget.load_arm(arm)
+        clock = clock if clock is not None else MonotonicClock()
+        baud = arm.baud if baud is None else baud
+        q = list(arm.rest_pose if pose is None else pose)
+        if len(q) != arm.n_joints:
+            raise ConfigError(f"Expected {arm.n_joints} joint angles", key="pose", value=q)
+        servos = []
+        for joint, angle in zip(arm.joints, q, strict=True):
+            for s in joint.servos:
+                actual = 2048 + s.direction * (s.offset + rad_to_pulses(angle))
+                servos.append(
+                    SimServo(
+                        s.model, s.id, clock=clock, baud=baud, return_delay_time=return_delay_time, position=actual
+                    )
+                )
+        if arm.gripper is not None:
+            g = arm.gripper.servo
+            servos.append(SimServo(g.model, g.id, clock=clock, baud=baud, return_delay_time=return_delay_time))
+        return cls(servos, clock=clock, baud=baud, faults=faults, **bus_options)  # type: ignore[arg-type]
+
+    def _apply_scheduled_faults(self) -> None:
+        for fault in self.faults.hardware:
+            self.servo(fault.id).schedule_hardware_error(fault.bits, self.t_start + fault.at)
+        for sid, at in self.faults.unplug.items():
+            self.servo(sid).unplug(self.t_start + at)
+
+    # ------------------------------------------------------------------ accessors
+
+    @property
+    def servos(self) -> tuple[SimServo, ...]:
+        return tuple(self._servos)
+
+    @property
+    def ids(self) -> tuple[int, ...]:
+        return tuple(sorted(s.id for s in self._servos))
+
+    def servo(self, dxl_id: int) -> SimServo:
+        """The servo whose ID item is ``dxl_id`` now; KeyError naming the IDs on the bus otherwise."""
+        for s in self._servos:
+            if s.id == dxl_id:
+                return s
+        raise KeyError(f"no servo with ID {dxl_id} on the bus (IDs: {list(self.ids)})")
+
+    def __repr__(self) -> str:
+        return f"SimBus(ids={list(self.ids)}, baud={self.baud})"
+
+    # ------------------------------------------------------------------ the wire
+
+    def reset(self) -> None:
+        """Drop any partial instruction held by the receivers (a port reopened)."""
+        with self._lock:
+            self._parser.clear()
+
+    def handle(self, request: bytes) -> bytes:
+        """Every byte the servos answer to ``request``, in order, ignoring when it would arrive (tests)."""
+        return b"".join(r.data for r in self.feed(request))
+
+    def feed(self, data: bytes, now: float | None = None) -> list[Reply]:
+        """Receive ``data`` written at ``now`` (default ``clock.now()``); the replies with their arrival times."""
+        with self._lock:
+            now = self.clock.now() if now is None else now
+            cursor = now + (wire_time(len(data), self.baud) if self.faults.wire else 0.0)
+            replies: list[Reply] = []
+            for packet in self._parser.feed(data):
+                self.log.append(LogEntry(cursor, packet.id, packet.instruction, packet.params, packet.crc_ok))
+                out = self._dispatch(packet, cursor)
+                cursor = self._schedule(out, cursor, replies)
+            return replies
+
+    def _schedule(self, out: list[tuple[SimServo, bytes]], cursor: float, replies: list[Reply]) -> float:
+        """Put each servo's packet on the wire after its return delay; apply reply faults."""
+        for servo, packet in out:
+            f = servo.reply_faults if isinstance(servo, _FastSender) else self.faults.for_servo(servo.id)
+            start = cursor + servo.return_delay
+            end = start + (wire_time(len(packet), self.baud) if self.faults.wire else 0.0)
+            cursor = end
+            if self.faults.roll(f.drop):
+                log.debug("dropped reply of servo %d", servo.id)
+                continue
+            if self.faults.roll(f.corrupt):
+                packet = packet[:-1] + bytes((packet[-1] ^ 0x01,))
+            replies.append(Reply(end + f.delay, packet, servo.id))
+        return cursor
+
+    def _listeners(self, t: float) -> list[SimServo]:
+        return [s for s in self._servos if s.listening(t) and (self.line_baud is None or s.baud == self.line_baud)]
+
+    def _dispatch(self, pkt: Packet, t: float) -> list[tuple[SimServo, bytes]]:
+        listeners = self._listeners(t)
+        for s in listeners:
+            s.update(t)
+        if pkt.id == BROADCAST_ID:
+            if not pkt.crc_ok:
+                return []
+            return self._broadcast(pkt, sorted(listeners, key=lambda s: s.id), t)
+        target = next((s for s in listeners if s.id == pkt.id), None)
+        if target is None or pkt.id > MAX_ID:
+            return []
+        if not pkt.crc_ok:
+            if self.crc_error_reply and target.status_return_level >= 2:
+                return [(target, build_status(target.id, target.error_byte(StatusError.CRC)))]
+            return []
+        error, data, reboot = self._unicast(target, pkt)
+        if error is None:
+            return []
+        inst = pkt.instruction
+        srl = target.status_return_level
+        if inst == Instruction.PING or (inst in _READ_INSTRUCTIONS and srl >= 1) or srl >= 2:
+            reply = [(target, build_status(target.id, target.error_byte(error), data))]
+        else:
+            reply = []
+        if reboot:
+            target.reboot()
+        return reply
+
+    def _unicast(self, s: SimServo, pkt: Packet) -> tuple[int | None, bytes, bool]:
+        """Execute one instruction on servo ``s``: (error or None for no reply, data, reboot after reply)."""
+        inst, p = pkt.instruction, pkt.params
+        if inst == Instruction.PING:
+            return (StatusError.NONE, s.ping(), False) if not p else (StatusError.DATA_LENGTH, b"", False)
+        if inst == Instruction.READ:
+            if len(p) != 4:
+                return StatusError.DATA_LENGTH, b"", False
+            error, data = s.read(_u16(p, 0), _u16(p, 2))
+            return error, data, False
+        if inst in (Instruction.WRITE, Instruction.REG_WRITE):
+            if len(p) < 3:
+                return StatusError.DATA_LENGTH, b"", False
+            do = s.write if inst == Instruction.WRITE else s.reg_write
+            return do(_u16(p, 0), p[2:]), b"", False
+        if inst == Instruction.ACTION:
+            return s.action(), b"", False
+        if inst == Instruction.REBOOT:
+            return StatusError.NONE, b"", True
+        if inst == Instruction.FACTORY_RESET:
+            if len(p) != 1:
+                return StatusError.DATA_LENGTH, b"", False
+            return s.factory_reset(p[0]), b"", False
+        if inst == Instruction.CLEAR:
+            return s.clear(p), b"", False
+        return StatusError.INSTRUCTION, b"", False
+
+    def _broadcast(self, pkt: Packet, servos: list[SimServo], t: float) -> list[tuple[SimServo, bytes]]:
+        inst, p = pkt.instruction, pkt.params
+        if inst == Instruction.PING:
+            return [(s, build_status(s.id, s.error_byte(StatusError.NONE), s.ping())) for s in servos]
+        if inst in _ALWAYS_BROADCAST_SILENT:
+            if inst == Instruction.FACTORY_RESET and p[:1] == bytes((FactoryReset.ALL,)):
+                return []  # not executed for broadcast, firmware >= 42
+            for s in servos:
+                _, _, reboot = self._unicast(s, pkt)
+                if reboot:
+                    s.reboot()
+            return []
+        by_id = {s.id: s for s in servos}
+        if inst == Instruction.SYNC_WRITE:
+            return self._sync_write(p, by_id)
+        if inst == Instruction.BULK_WRITE:
+            return self._bulk_write(p, by_id)
+        if inst in (Instruction.SYNC_READ, Instruction.FAST_SYNC_READ):
+            if len(p) < 5:
+                return []
+            address, length = _u16(p, 0), _u16(p, 2)
+            requests = [(i, address, length) for i in p[4:]]
+        elif inst in (Instruction.BULK_READ, Instruction.FAST_BULK_READ):
+            if len(p) < 5 or len(p) % 5:
+                return []
+            requests = [(p[k], _u16(p, k + 1), _u16(p, k + 3)) for k in range(0, len(p), 5)]
+        else:
+            return []  # unknown broadcast instruction: nobody answers
+        if inst in (Instruction.FAST_SYNC_READ, Instruction.FAST_BULK_READ):
+            return self._fast_read(requests, by_id)
+        out = []
+        for dxl_id, address, length in requests:
+            s = by_id.get(dxl_id)
+            if s is None or s.status_return_level < 1:
+                continue
+            error, data = s.read(address, length)
+            out.append((s, build_status(s.id, s.error_byte(error), data)))
+        return out
+
+    def _sync_write(self, p: bytes, by_id: dict[int, SimServo]) -> list[tuple[SimServo, bytes]]:
+        if len(p) < 4:
+            return []
+        address, length = _u16(p, 0), _u16(p, 2)
+        step = length + 1
+        if length == 0 or (len(p) - 4) % step:
+            return []
+        for k in range(4, len(p), step):
+            s = by_id.get(p[k])
+            if s is not None:
+                s.write(address, p[k + 1 : k + step])
+        return []
+
+    def _bulk_write(self, p: bytes, by_id: dict[int, SimServo]) -> list[tuple[SimServo, bytes]]:
+        k = 0
+        while k + 5 <= len(p):
+            dxl_id, address, length = p[k], _u16(p, k + 1), _u16(p, k + 3)
+            data = p[k + 5 : k + 5 + length]
+            if len(data) != length:
+                break
+            s = by_id.get(dxl_id)
+            if s is not None:
+                s.write(address, data)
+            k += 5 + length
+        return []
+
+    def _fast_read(
+        self, requests: list[tuple[int, int, int]], by_id: dict[int, SimServo]
+    ) -> list[tuple[SimServo, bytes]]:
+        """One shared packet; each servo's slot is ERR ID DATA CRC.  A silent servo cuts the packet there."""
+        slots = []
+        present: list[SimServo] = []
+        for dxl_id, address, length in requests:
+            s = by_id.get(dxl_id)
+            if s is None or not s.model.fast_sync_read or s.status_return_level < 1:
+                break
+            error, data = s.read(address, length)
+            slots.append((s.error_byte(error), dxl_id, data if not error else bytes(length)))
+            present.append(s)
+        if not present:
+            return []
+        full_slots = slots + [(0, dxl_id, bytes(length)) for dxl_id, _, length in requests[len(slots) :]]
+        packet = build_fast_read_status(full_slots)
+        cut = 8 + sum(len(d) + 4 for _, _, d in slots)
+        f = [self.faults.for_servo(s.id) for s in present]
+        # faults per slot: a dropped slot ends the packet there; a corrupt slot flips its CRC byte
+        end = cut
+        offset = 8
+        for k, (_, _, data) in enumerate(slots):
+            slot_end = offset + len(data) + 4
+            if self.faults.roll(f[k].drop):
+                end = offset
+                break
+            if self.faults.roll(f[k].corrupt):
+                packet = packet[: slot_end - 1] + bytes((packet[slot_end - 1] ^ 0x01,)) + packet[slot_end:]
+            offset = slot_end
+        if end <= 8:
+            return []
+        # the packet leaves as one stream; attribute it to the first servo (its return delay starts it)
+        delay = max(x.delay for x in f)
+        return [(_FastSender(present[0], ReplyFaults(delay=delay)), packet[:end])]  # type: ignore[list-item]
+
+
+class _FastSender:
+    """The first servo of a fast read, with reply faults already applied per slot."""
+
+    def __init__(self, servo: SimServo, reply_faults: ReplyFaults):
+        self.id = BROADCAST_ID
+        self.return_delay = servo.return_delay
+        self.reply_faults = reply_faults
+
+
+def _u16(p: bytes, k: int) -> int:
+    return p[k] | p[k + 1] << 8

@@ -1,0 +1,550 @@
+"""One simulated Dynamixel X-series servo: control-table memory, access rules, motion, load and hardware errors.
+
+The servo answers instruction-level calls (:meth:`SimServo.read`, :meth:`SimServo.write`, ...) with a
+Protocol 2.0 error number and data; :class:`sim.bus.SimBus` turns those into packets.  The registers and
+their defaults, ranges and access come from :mod:`drivers.control_table`.
+
+Rules it follows, from the e-Manual:
+
+* EEPROM items (address < 64) are writable only while Torque Enable is 0: Access error (7) otherwise.
+  Read-only items and undefined addresses answer Access error; a write that covers part of an item answers
+  Data Length error (5); a value outside an item's range answers Data Range (4); a Goal Position outside
+  Min/Max Position Limit (position mode), a Goal Velocity beyond Velocity Limit, a Goal Current beyond
+  Current Limit or a Goal PWM beyond PWM Limit answers Data Limit (6).  A failed write changes nothing.
+* Present Position = Actual Position + Homing Offset.  Drive Mode bit 0 (reverse) mirrors the direction:
+  the servo reports ``4096 - actual`` (the same within one turn as ``-actual``) so a reversed servo at the
+  centre still reads 2048; goals, velocity and current are mirrored with it.
+* Position modes (3, 4, 5) move toward Goal Position with the velocity-based trapezoid of Profile
+  Velocity/Acceleration (0 = unlimited), or the time-based profile (Drive Mode bit 2) where they are
+  times in ms.  The speed is capped by Velocity Limit and by the model's no-load speed.  Velocity mode (1)
+  ramps Present Velocity to Goal Velocity under Profile Acceleration.  Current (0) and PWM (16) modes
+  hold still (no load physics).  With torque off nothing moves.
+* Present Current (Present Load on XL430) is a plausible load: a holding share of the stall current plus
+  terms proportional to acceleration and velocity.  Temperature and input voltage are readable.
+* A hardware error sets Hardware Error Status and the Alert bit (0x80) of every status packet.  If its bit
+  is in the Shutdown mask, torque goes off and a write of Torque Enable = 1 is ignored until REBOOT.
+* REBOOT resets the RAM area and clears hardware errors; FACTORY_RESET resets the table (0xFF all,
+  0x01 all but ID, 0x02 all but ID and Baud Rate).
+
+Motion is integrated lazily: every read and write first brings the servo to ``clock.now()``.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable
+
+from drivers.control_table import (
+    ALERT_BIT,
+    BAUD_CODES,
+    BAUD_RATES,
+    EEPROM_END,
+    PULSES_PER_REV,
+    RPM2_PER_ACCEL_UNIT,
+    RPM_PER_VELOCITY_UNIT,
+    DriveMode,
+    FactoryReset,
+    HardwareError,
+    Model,
+    OperatingMode,
+    Register,
+    StatusError,
+)
+from drivers.control_table import (
+    model as lookup_model,
+)
+from retarget.clock import Clock, MonotonicClock
+from sim.profile import Profile, ramp_profile, rest, time_profile, velocity_profile
+
+log = logging.getLogger(__name__)
+
+PULSES_PER_S_PER_VELOCITY_UNIT = RPM_PER_VELOCITY_UNIT / 60.0 * PULSES_PER_REV  #: ~15.63
+PULSES_PER_S2_PER_ACCEL_UNIT = RPM2_PER_ACCEL_UNIT / 3600.0 * PULSES_PER_REV  #: ~244.1
+CLEAR_MULTI_TURN = bytes((0x01, 0x44, 0x58, 0x4C, 0x22))
+_POSITION_MODES = (OperatingMode.POSITION, OperatingMode.EXTENDED_POSITION, OperatingMode.CURRENT_BASED_POSITION)
+_HOLD_SHARE = 0.06  #: Present Current while holding still, as a share of the stall current ("gravity")
+_ACCEL_SHARE = 0.25  #: extra share at the reference acceleration (no-load speed reached in 0.1 s)
+_VELOCITY_SHARE = 0.10  #: extra share at the no-load speed
+
+
+class SimServo:
+    """A simulated servo of ``model`` with ID ``dxl_id``.
+
+    ``position`` is the Present Position it starts at (pulses, with the default Drive Mode and Homing
+    Offset).  ``baud`` (bps) and ``return_delay_time`` (2 us units) set those EEPROM items, which a real
+    arm has already configured; everything else starts at the factory defaults.  ``boot_time`` is how long
+    (s) it stays silent after REBOOT.
+    """
+
+    def __init__(
+        self,
+        model: Model | str,
+        dxl_id: int = 1,
+        *,
+        clock: Clock | None = None,
+        position: float = 2048.0,
+        baud: int | None = None,
+        return_delay_time: int | None = None,
+        temperature: float = 32.0,
+        boot_time: float = 0.0,
+    ):
+        self.model: Model = lookup_model(model) if isinstance(model, str | int) else model
+        self.clock: Clock = clock if clock is not None else MonotonicClock()
+        self.boot_time = float(boot_time)
+        self.ambient_temperature = float(temperature)
+        self.input_voltage = self.model.nominal_voltage  #: volts, what Present Input Voltage reports
+        self._mem = self.model.defaults()
+        self._regs = self.model.registers
+        self._set("ID", dxl_id)
+        if baud is not None:
+            if baud not in BAUD_CODES:
+                raise ValueError(f"Expected a Dynamixel baud rate {sorted(BAUD_CODES)}, got {baud}")
+            self._set("Baud Rate", BAUD_CODES[baud])
+        if return_delay_time is not None:
+            self._set("Return Delay Time", return_delay_time)
+        now = self.clock.now()
+        self._t_origin = now
+        self._t = now
+        self._profile: Profile = rest(float(position))  # physical (actual) pulses
+        self._state = (float(position), 0.0, 0.0)  # actual p, v, a at self._t
+        self._registered: tuple[int, bytes] | None = None
+        self._scheduled_errors: list[tuple[float, int]] = []
+        self._silent_until = -math.inf
+        self._unplugged_at = math.inf
+        self.writes: list[tuple[float, int, bytes]] = []  #: (time, address, data) of every accepted write
+        self._set("Goal Position", self._present_from_actual(self._state[0]))
+        self._indirect_used = False
+        self.update()
+
+    # ------------------------------------------------------------------ identity and wire settings
+
+    def __repr__(self) -> str:
+        return f"SimServo({self.model.name!r}, id={self.id})"
+
+    @property
+    def id(self) -> int:
+        return self._mem[7]
+
+    @property
+    def baud(self) -> int:
+        """The bps it listens at (Baud Rate item)."""
+        return BAUD_RATES[self._mem[8]]
+
+    @property
+    def return_delay(self) -> float:
+        """Seconds between the end of an instruction and the start of its status packet."""
+        return self._mem[9] * 2e-6
+
+    @property
+    def status_return_level(self) -> int:
+        return self._mem[68]
+
+    @property
+    def torque(self) -> bool:
+        return bool(self._mem[64])
+
+    @property
+    def hardware_error(self) -> int:
+        return self._mem[70]
+
+    def error_byte(self, error: int) -> int:
+        """The ERR byte of a status packet: ``error`` plus the Alert bit while a hardware error is set."""
+        return error | (ALERT_BIT if self._mem[70] else 0)
+
+    # ------------------------------------------------------------------ availability (faults)
+
+    def unplug(self, at: float | None = None) -> None:
+        """Stop answering from time ``at`` (default now), as if its cable were pulled."""
+        self._unplugged_at = self.clock.now() if at is None else float(at)
+
+    def plug(self) -> None:
+        self._unplugged_at = math.inf
+
+    def listening(self, now: float | None = None) -> bool:
+        """False while unplugged or booting: the servo neither executes nor answers anything."""
+        now = self.clock.now() if now is None else now
+        return now < self._unplugged_at and now >= self._silent_until
+
+    def schedule_hardware_error(self, bits: int | HardwareError, at: float) -> None:
+        """Raise hardware error ``bits`` (HardwareError flags) at clock time ``at``."""
+        self._scheduled_errors.append((float(at), int(bits)))
+        self._scheduled_errors.sort()
+
+    def trigger_hardware_error(self, bits: int | HardwareError) -> None:
+        """Raise hardware error ``bits`` now: Alert bit, and torque off if ``bits & Shutdown``."""
+        self.update()
+        self._raise_hardware_error(int(bits))
+
+    def _raise_hardware_error(self, bits: int) -> None:
+        self._mem[70] |= bits
+        if bits & HardwareError.OVERHEATING:
+            self.ambient_temperature = max(self.ambient_temperature, self._get("Temperature Limit") + 3)
+        if bits & HardwareError.INPUT_VOLTAGE:
+            self.input_voltage = self._get("Max Voltage Limit") / 10.0 + 1.0
+        if bits & self._mem[63] and self._mem[64]:
+            self._torque_off()
+        log.info("servo %d: hardware error 0x%02x", self.id, bits)
+
+    # ------------------------------------------------------------------ raw register access (tests)
+
+    def _get(self, name: str) -> int:
+        reg = self._regs[name]
+        return reg.decode(self._mem[reg.address : reg.end])
+
+    def _set(self, name: str, value: int) -> None:
+        reg = self._regs[name]
+        self._mem[reg.address : reg.end] = reg.encode(int(value))
+
+    def get(self, name: str) -> int:
+        """The value of register ``name`` now (motion brought up to date)."""
+        self.model.register(name)
+        self.update()
+        return self._get(name)
+
+    def set(self, name: str, value: int) -> None:
+        """Store ``value`` in register ``name`` bypassing every check (test setup; Present items are recomputed)."""
+        self.update()
+        self.model.register(name)
+        self._set(name, value)
+
+    def set_position(self, present: float) -> None:
+        """Teleport: make Present Position read ``present`` now, at rest."""
+        self.update()
+        actual = self._actual_from_present(present)
+        self._profile = rest(actual)
+        self._state = (actual, 0.0, 0.0)
+        self.update()
+
+    @property
+    def memory(self) -> bytes:
+        """A copy of the whole control table, up to date."""
+        self.update()
+        return bytes(self._mem)
+
+    # ------------------------------------------------------------------ frames: actual <-> present
+
+    @property
+    def _reverse(self) -> bool:
+        return bool(self._mem[10] & DriveMode.REVERSE)
+
+    def _present_from_actual(self, actual: float) -> float:
+        return (PULSES_PER_REV - actual if self._reverse else actual) + self._get("Homing Offset")
+
+    def _actual_from_present(self, present: float) -> float:
+        p = present - self._get("Homing Offset")
+        return PULSES_PER_REV - p if self._reverse else p
+
+    # ------------------------------------------------------------------ motion
+
+    def _mode(self) -> int:
+        return self._mem[11]
+
+    def _vmax(self) -> float:
+        """Pulses/s cap: Velocity Limit and the no-load speed."""
+        no_load = self.model.no_load_rpm / 60.0 * PULSES_PER_REV
+        limit = self._get("Velocity Limit") * PULSES_PER_S_PER_VELOCITY_UNIT
+        return min(no_load, limit) if limit > 0 else no_load
+
+    def _plan_goal(self) -> None:
+        now = self._t
+        p, v, _ = self._state
+        goal = self._actual_from_present(self._get("Goal Position"))
+        vmax = self._vmax()
+        pv, pa = self._get("Profile Velocity"), self._get("Profile Acceleration")
+        if self._mem[10] & DriveMode.TIME_BASED_PROFILE:
+            self._profile = time_profile(now, p, goal, pv / 1000.0, pa / 1000.0, vmax)
+        else:
+            if pv > 0:
+                vmax = min(vmax, pv * PULSES_PER_S_PER_VELOCITY_UNIT)
+            accel = pa * PULSES_PER_S2_PER_ACCEL_UNIT if pa > 0 else math.inf
+            self._profile = velocity_profile(now, p, v, goal, vmax, accel)
+
+    def _plan_velocity(self) -> None:
+        p, v, _ = self._state
+        goal_v = self._get("Goal Velocity") * PULSES_PER_S_PER_VELOCITY_UNIT
+        goal_v = max(-self._vmax(), min(self._vmax(), goal_v))
+        if self._reverse:
+            goal_v = -goal_v
+        pa = self._get("Profile Acceleration")
+        self._profile = ramp_profile(self._t, p, v, goal_v, pa * PULSES_PER_S2_PER_ACCEL_UNIT if pa > 0 else math.inf)
+
+    def _torque_on(self) -> None:
+        self._mem[64] = 1
+        present = round(self._present_from_actual(self._state[0]))
+        self._set("Goal Position", max(-1_048_575, min(1_048_575, present)))
+        self._profile = rest(self._state[0])
+        self._state = (self._state[0], 0.0, 0.0)
+        if self._mode() == OperatingMode.VELOCITY:
+            self._plan_velocity()
+
+    def _torque_off(self) -> None:
+        self._mem[64] = 0
+        self._profile = rest(self._state[0])
+        self._state = (self._state[0], 0.0, 0.0)
+
+    def update(self, now: float | None = None) -> None:
+        """Bring motion, faults and every Present item up to ``now`` (default ``clock.now()``)."""
+        now = self.clock.now() if now is None else float(now)
+        while self._scheduled_errors and self._scheduled_errors[0][0] <= now:
+            at, bits = self._scheduled_errors.pop(0)
+            self._advance(at)
+            self._raise_hardware_error(bits)
+        self._advance(now)
+        self._refresh_present(now)
+
+    def _advance(self, now: float) -> None:
+        if now < self._t:
+            return
+        if self._mem[64] and self._mode() in (*_POSITION_MODES, OperatingMode.VELOCITY):
+            self._state = self._profile.state(now)
+        self._t = now
+
+    def _refresh_present(self, now: float) -> None:
+        p, v, a = self._state
+        sign = -1.0 if self._reverse else 1.0
+        present = self._present_from_actual(p)
+        moving_profile = bool(self._mem[64]) and not self._profile.done(now)
+        velocity_units = sign * v / PULSES_PER_S_PER_VELOCITY_UNIT
+        self._set("Present Position", max(-(2**31), min(2**31 - 1, round(present))))
+        self._set("Present Velocity", round(velocity_units))
+        self._set("Position Trajectory", max(-(2**31), min(2**31 - 1, round(present))))
+        self._set("Velocity Trajectory", round(velocity_units))
+        threshold = self._get("Moving Threshold")
+        moving = moving_profile or abs(velocity_units) > threshold
+        self._mem[122] = 1 if moving else 0
+        in_position = not moving_profile and abs(self._get("Goal Position") - present) <= max(threshold, 1)
+        self._mem[123] = (
+            (1 if in_position and self._mem[64] else 0)
+            | (2 if moving_profile else 0)
+            | ((self._profile.shape & 3) << 4 if moving_profile else 0)
+        )
+        self._set("Realtime Tick", int((now - self._t_origin) * 1000.0) % 32768)
+        load = self._load_share(v, a) * sign if self._mem[64] else 0.0
+        if self.model.current_unit_ma is None:
+            self._set("Present Load", round(max(-1.0, min(1.0, load)) * 1000))
+        else:
+            ma = load * self.model.stall_current * 1000.0
+            self._set("Present Current", round(ma / self.model.current_unit_ma))
+        no_load = self.model.no_load_rpm / 60.0 * PULSES_PER_REV
+        self._set("Present PWM", round(sign * v / no_load * 885) if self._mem[64] else 0)
+        self._set("Present Input Voltage", round(self.input_voltage * 10))
+        heat = 4.0 * abs(load)
+        self._set("Present Temperature", max(0, min(255, round(self.ambient_temperature + heat))))
+        if self._indirect_used:
+            self._refresh_indirect()
+
+    def _load_share(self, v: float, a: float) -> float:
+        no_load = self.model.no_load_rpm / 60.0 * PULSES_PER_REV
+        a_ref = no_load / 0.1
+        direction = math.copysign(1.0, a) if a else math.copysign(1.0, v) if v else 1.0
+        share = _HOLD_SHARE * direction + _ACCEL_SHARE * a / a_ref + _VELOCITY_SHARE * v / no_load
+        return max(-1.0, min(1.0, share))
+
+    # ------------------------------------------------------------------ indirect addressing
+
+    def _indirect_pairs(self) -> list[tuple[int, int]]:
+        """(data address, target address) of every Indirect Data item."""
+        pairs = []
+        for reg in self._regs.values():
+            if reg.name.startswith("Indirect Address "):
+                n = reg.name.rsplit(" ", 1)[1]
+                data = self._regs[f"Indirect Data {n}"]
+                pairs.append((data.address, reg.decode(self._mem[reg.address : reg.end])))
+        return pairs
+
+    def _forward_indirect(self, writes: list[tuple[int, int]]) -> None:
+        """Write bytes stored in Indirect Data items through to their targets, in runs of consecutive targets."""
+        targets = dict(self._indirect_pairs())
+        runs: list[tuple[int, bytearray]] = []
+        for data_addr, byte in writes:
+            target = targets.get(data_addr)
+            if target is None:
+                continue
+            if runs and runs[-1][0] + len(runs[-1][1]) == target:
+                runs[-1][1].append(byte)
+            else:
+                runs.append((target, bytearray((byte,))))
+        for target, run in runs:
+            if self.check_write(target, bytes(run)) == StatusError.NONE:
+                self.write(target, bytes(run))
+
+    def _refresh_indirect(self) -> None:
+        for data_addr, target in self._indirect_pairs():
+            if 0 <= target < len(self._mem):
+                self._mem[data_addr] = self._mem[target]
+
+    # ------------------------------------------------------------------ instructions
+
+    def ping(self) -> bytes:
+        """The PING reply parameters: model number LSB, MSB, firmware version."""
+        return bytes(self._mem[0:2]) + bytes((self._mem[6],))
+
+    def read(self, address: int, length: int) -> tuple[int, bytes]:
+        """READ: ``(error, data)``; ``data`` is empty on error."""
+        self.update()
+        if length <= 0:
+            return StatusError.DATA_LENGTH, b""
+        if address < 0 or address + length > len(self._mem):
+            return StatusError.ACCESS, b""
+        return StatusError.NONE, bytes(self._mem[address : address + length])
+
+    def check_write(self, address: int, data: bytes) -> int:
+        """The error a WRITE of ``data`` at ``address`` would answer (0 if it would succeed), changing nothing."""
+        self.update()
+        error, _ = self._validate(address, bytes(data))
+        return error
+
+    def write(self, address: int, data: bytes) -> int:
+        """WRITE: validate every covered item, then store all and apply side effects; the error number."""
+        self.update()
+        data = bytes(data)
+        error, regs = self._validate(address, data)
+        if error:
+            return error
+        self._apply(address, data, regs)
+        return StatusError.NONE
+
+    def reg_write(self, address: int, data: bytes) -> int:
+        """REG_WRITE: validate now, execute on ACTION; sets Registered Instruction."""
+        error = self.check_write(address, data)
+        if error:
+            return error
+        self._registered = (address, bytes(data))
+        self._mem[69] = 1
+        return StatusError.NONE
+
+    def action(self) -> int:
+        """ACTION: run the registered write; Instruction error when none is registered."""
+        if self._registered is None:
+            return StatusError.INSTRUCTION
+        address, data = self._registered
+        self._registered = None
+        self._mem[69] = 0
+        return self.write(address, data)
+
+    def reboot(self) -> None:
+        """REBOOT (after its reply): RAM back to defaults, hardware error cleared, silent for ``boot_time``."""
+        self.update()
+        defaults = self.model.defaults()
+        self._mem[EEPROM_END:] = defaults[EEPROM_END:]
+        self._registered = None
+        self.ambient_temperature = min(self.ambient_temperature, 32.0)
+        self.input_voltage = self.model.nominal_voltage
+        self._torque_off()
+        self._set("Goal Position", max(-1_048_575, min(1_048_575, round(self._present_from_actual(self._state[0])))))
+        self._indirect_used = False
+        self._silent_until = self._t + self.boot_time
+        self.update()
+        log.info("servo %d: rebooted", self.id)
+
+    def factory_reset(self, option: int) -> int:
+        """FACTORY_RESET with option 0xFF (all), 0x01 (keep ID) or 0x02 (keep ID and baud); the error number."""
+        if option not in tuple(FactoryReset):
+            return StatusError.DATA_RANGE
+        self.update()
+        keep_id, keep_baud = self._mem[7], self._mem[8]
+        self._mem[:] = self.model.defaults()
+        if option in (FactoryReset.EXCEPT_ID, FactoryReset.EXCEPT_ID_AND_BAUD):
+            self._mem[7] = keep_id
+        if option == FactoryReset.EXCEPT_ID_AND_BAUD:
+            self._mem[8] = keep_baud
+        self._registered = None
+        self._torque_off()
+        self._set("Goal Position", round(self._present_from_actual(self._state[0])))
+        self._indirect_used = False
+        self.update()
+        return StatusError.NONE
+
+    def clear(self, params: bytes) -> int:
+        """CLEAR 01 44 58 4C 22: reset the multi-turn count (Result Fail while moving)."""
+        if bytes(params) != CLEAR_MULTI_TURN:
+            return StatusError.DATA_RANGE
+        self.update()
+        if self._mem[122]:
+            return StatusError.RESULT_FAIL
+        p = self._state[0] % PULSES_PER_REV
+        self._profile = rest(p)
+        self._state = (p, 0.0, 0.0)
+        self.update()
+        return StatusError.NONE
+
+    # ------------------------------------------------------------------ write validation and effects
+
+    def _validate(self, address: int, data: bytes) -> tuple[int, list[Register]]:
+        if not data:
+            return StatusError.DATA_LENGTH, []
+        end = address + len(data)
+        if address < 0 or end > len(self._mem):
+            return StatusError.ACCESS, []
+        regs = self.model.covering(address, len(data))
+        if not regs:
+            return StatusError.ACCESS, []
+        for reg in regs:
+            if reg.address < address or reg.end > end:
+                return StatusError.DATA_LENGTH, []
+        for reg in regs:
+            if not reg.writable:
+                return StatusError.ACCESS, []
+            if reg.eeprom and self._mem[64]:
+                return StatusError.ACCESS, []
+        new = {r.name: r.decode(data[r.address - address : r.end - address]) for r in regs}
+
+        def value(name: str) -> int:
+            return new[name] if name in new else self._get(name)
+
+        mode = value("Operating Mode")
+        for reg in regs:
+            v = new[reg.name]
+            if not reg.in_range(v):
+                return StatusError.DATA_RANGE, []
+            if reg.name == "Operating Mode" and v not in self.model.operating_modes:
+                return StatusError.DATA_RANGE, []
+            if reg.limit is not None and not (reg.name == "Goal Position" and mode != OperatingMode.POSITION):
+                lo_name, hi_name = reg.limit
+                lo = -value(lo_name[1:]) if lo_name.startswith("-") else value(lo_name)
+                hi = value(hi_name)
+                if not lo <= v <= hi:
+                    return StatusError.DATA_LIMIT, []
+        return StatusError.NONE, regs
+
+    def _apply(self, address: int, data: bytes, regs: list[Register]) -> None:
+        self.writes.append((self._t, address, data))
+        indirect_writes: list[tuple[int, int]] = []
+        effects: list[Callable[[], None]] = []
+        for reg in regs:
+            raw = data[reg.address - address : reg.end - address]
+            old = self._mem[reg.address : reg.end]
+            self._mem[reg.address : reg.end] = raw
+            name = reg.name
+            if name == "Torque Enable":
+                if raw[0] and not old[0]:
+                    if self._mem[70] & self._mem[63]:
+                        self._mem[64] = 0  # shut down: only REBOOT brings torque back
+                    else:
+                        effects.append(self._torque_on)
+                elif not raw[0] and old[0]:
+                    effects.append(self._torque_off)
+            elif name == "Goal Position":
+                if (
+                    not self._mem[64]
+                    and self._mem[10] & DriveMode.TORQUE_ON_BY_GOAL
+                    and not self._mem[70] & self._mem[63]
+                ):
+                    self._mem[64] = 1
+                if self._mem[64] and self._mode() in _POSITION_MODES:
+                    effects.append(self._plan_goal)
+            elif name == "Goal Velocity":
+                if self._mem[64] and self._mode() == OperatingMode.VELOCITY:
+                    effects.append(self._plan_velocity)
+            elif name == "Operating Mode" and raw != old:
+                effects.append(lambda: setattr(self, "_profile", rest(self._state[0])))
+            elif name.startswith("Indirect Address"):
+                self._indirect_used = True
+            elif name.startswith("Indirect Data"):
+                indirect_writes.append((reg.address, raw[0]))
+        for effect in effects:
+            effect()
+        if indirect_writes and self._indirect_used:
+            self._forward_indirect(indirect_writes)
+        self._refresh_present(self._t)
