@@ -339,6 +339,15 @@ class Workspace:
     r_max: float
     floor: float
 
+    @classmethod
+    def for_arm(cls, arm: Arm, config: MappingConfig | None = None) -> Workspace:
+        """The workspace of ``arm`` with the reach fractions and floor of ``config``."""
+        config = config or MappingConfig()
+        g = arm_geometry(arm)
+        return cls(
+            center=g.pivot, r_min=config.min_reach * g.reach, r_max=config.max_reach * g.reach, floor=config.floor
+        )
+
     def clamp(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Pull ``points`` ``(..., 3)`` metres to the nearest point of the workspace.
 
@@ -438,6 +447,35 @@ class Targets:
     config: MappingConfig
     scale: float  #: metres per BVH file unit
 
+    @classmethod
+    def from_raw(
+        cls,
+        raw: np.ndarray,
+        *,
+        frame_time: float,
+        workspace: Workspace,
+        config: MappingConfig | None = None,
+        rotations: np.ndarray | None = None,
+        scale: float = 1.0,
+    ) -> Targets:
+        """Targets from tool points ``raw`` ``(n_frames, 3)`` metres (base frame), clamped into ``workspace``."""
+        raw = np.asarray(raw, dtype=np.float64)
+        if raw.ndim != 2 or raw.shape[1] != 3 or raw.shape[0] < 1:
+            raise ValueError(f"Expected raw targets of shape (n_frames, 3), got {raw.shape}")
+        if not (np.isfinite(frame_time) and frame_time > 0):
+            raise ValueError(f"Expected a frame time > 0 s, got {frame_time}")
+        positions, clamped = workspace.clamp(raw)
+        return cls(
+            positions=positions,
+            raw=raw,
+            clamped=clamped,
+            rotations=rotations,
+            frame_time=float(frame_time),
+            workspace=workspace,
+            config=config or MappingConfig(),
+            scale=scale,
+        )
+
     @property
     def n_frames(self) -> int:
         return int(self.positions.shape[0])
@@ -510,24 +548,15 @@ def retarget_targets(motion: Motion, arm: Arm, config: MappingConfig | None = No
     scale = config.arm_scale * geometry.reach / float(human)
     origin = np.asarray(config.origin, dtype=np.float64) if config.origin else config.default_origin(geometry)
     raw = map_points(shoulder, wrist, frames, scale=scale, origin=origin)
-    workspace = Workspace(
-        center=geometry.pivot,
-        r_min=config.min_reach * geometry.reach,
-        r_max=config.max_reach * geometry.reach,
-        floor=config.floor,
-    )
-    positions, clamped = workspace.clamp(raw)
     rotations = None
     if config.orientation_weight > 0:
         rotations = _hand_rotations(motion, chain.names, frames, config)
-    return Targets(
-        positions=positions,
-        raw=raw,
-        clamped=clamped,
-        rotations=rotations,
+    return Targets.from_raw(
+        raw,
         frame_time=float(motion.frame_time),
-        workspace=workspace,
+        workspace=Workspace.for_arm(arm, config),
         config=config,
+        rotations=rotations,
         scale=scale,
     )
 

@@ -1,0 +1,243 @@
+"""The control loop on synthetic targets, without a bus (the simulated-bus runs are in test_replay_sim.py)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import retarget
+from retarget.clock import VirtualClock
+from retarget.control import ControlLoop, LoopConfig, TickRecord
+from retarget.errors import ConfigError
+from retarget.mapping import MappingConfig, Targets, Workspace
+
+
+@pytest.fixture(scope="module")
+def arm():
+    return retarget.load_arm("wx250s")
+
+
+def circle_targets(arm, *, n_frames: int = 61, frame_time: float = 1 / 30, radius: float = 0.08) -> Targets:
+    """A circle in front of the arm, 2 s at 30 fps, well inside the workspace."""
+    t = np.arange(n_frames) * frame_time
+    phase = 2 * np.pi * t / (t[-1] or 1.0)
+    raw = np.stack([0.35 + 0 * t, radius * np.sin(phase), 0.25 + radius * np.cos(phase)], axis=-1)
+    return Targets.from_raw(raw, frame_time=frame_time, workspace=Workspace.for_arm(arm))
+
+
+def run(arm, targets, **config):
+    records: list[TickRecord] = []
+    loop = ControlLoop(arm, targets, config=LoopConfig(**config), clock=VirtualClock(), on_tick=records.append)
+    summary = loop.run(None)
+    return loop, summary, records
+
+
+def test_dry_run_follows_the_targets_within_limits(arm):
+    targets = circle_targets(arm)
+    loop, summary, records = run(arm, targets)
+    assert summary.ticks == len(records) == 201  # 2 s at 100 Hz, both ends included
+    assert summary.dry_run and not summary.interrupted
+    q = np.array([r.q_cmd for r in records])
+    assert np.all(q >= arm.lower) and np.all(q <= arm.upper)
+    steps = np.abs(np.diff(q, axis=0))
+    assert np.all(steps <= arm.max_velocity / 100 + 1e-12)
+    # after the lead-in from the rest pose, the commanded pose tracks the target to IK tolerance
+    tool = np.array([arm.fk(qi)[0][:3, 3] for qi in q])
+    tracking = np.linalg.norm(tool - np.array([r.target for r in records]), axis=1)
+    settled = ~np.array([r.velocity_limited for r in records])
+    settled[: np.argmax(settled)] = False
+    assert np.median(tracking[settled]) < 1.5e-3
+    assert summary.ik_converged_pct > 95
+    assert all(r.q_present is None for r in records)
+
+
+def test_ticks_are_resampled_by_linear_interpolation(arm):
+    targets = circle_targets(arm)
+    _, _, records = run(arm, targets, rate=50.0)
+    for r in records[:: len(records) // 7]:
+        f = r.clip_time / targets.frame_time
+        i = min(int(f), targets.n_frames - 2)
+        w = f - i
+        expected = targets.raw[i] * (1 - w) + targets.raw[i + 1] * w
+        np.testing.assert_allclose(r.target, expected, atol=1e-12)
+        assert r.time == pytest.approx(r.tick / 50.0)
+
+
+@pytest.mark.parametrize(
+    ("config", "ticks", "first", "last"),
+    [
+        ({}, 201, 0.0, 2.0),
+        ({"speed": 2.0}, 101, 0.0, 2.0),
+        ({"speed": 0.5}, 401, 0.0, 2.0),
+        ({"start": 0.5, "end": 1.5}, 101, 0.5, 1.5),
+        ({"end": 10.0}, 201, 0.0, 2.0),  # an end past the clip stops at the clip's end
+        ({"rate": 30.0}, 61, 0.0, 2.0),
+    ],
+    ids=["default", "speed2", "speed-half", "window", "end-past-clip", "rate30"],
+)
+def test_window_speed_and_rate(arm, config, ticks, first, last):
+    _, summary, records = run(arm, circle_targets(arm), **config)
+    assert summary.ticks == ticks
+    assert records[0].clip_time == pytest.approx(first)
+    assert records[-1].clip_time == pytest.approx(last)
+
+
+def test_loop_wraps_until_max_ticks(arm):
+    _, summary, records = run(arm, circle_targets(arm), loop=True, max_ticks=450, start=0.5, end=1.5)
+    assert summary.ticks == 450
+    clip = np.array([r.clip_time for r in records])
+    assert clip.min() == pytest.approx(0.5) and clip.max() < 1.5
+    assert np.count_nonzero(np.diff(clip) < 0) == 4  # 100 ticks per lap
+
+
+def test_stop_flag_ends_the_run_at_a_tick_boundary(arm):
+    records: list[TickRecord] = []
+    loop = ControlLoop(arm, circle_targets(arm), clock=VirtualClock())
+
+    def on_tick(r: TickRecord) -> None:
+        records.append(r)
+        if r.tick == 9:
+            loop.stop()
+
+    loop.on_tick = on_tick
+    summary = loop.run(None)
+    assert summary.interrupted and summary.ticks == len(records) == 10
+
+
+def test_keyboard_interrupt_inside_a_tick_ends_the_run(arm):
+    def on_tick(r: TickRecord) -> None:
+        if r.tick == 4:
+            raise KeyboardInterrupt
+
+    loop = ControlLoop(arm, circle_targets(arm), clock=VirtualClock(), on_tick=on_tick)
+    summary = loop.run(None)
+    assert summary.interrupted and summary.ticks == 5
+
+
+class SlowClock(VirtualClock):
+    """A virtual clock on which every tick's work takes ``work`` seconds.
+
+    The loop reads the clock once at the start, then once at the end of each tick.
+    """
+
+    def __init__(self, work: float):
+        super().__init__()
+        self.work = work
+        self.reads = 0
+
+    def now(self) -> float:
+        self.reads += 1
+        if self.reads > 1:
+            self.advance(self.work)
+        return super().now()
+
+
+def test_overruns_are_counted_and_skip_slots_instead_of_drifting(arm):
+    clock = SlowClock(work=0.025)  # 2.5 slots of work per tick at 100 Hz
+    records: list[TickRecord] = []
+    loop = ControlLoop(arm, circle_targets(arm), clock=clock, on_tick=records.append)
+    summary = loop.run(None)
+    assert summary.overruns == summary.ticks > 0
+    assert summary.skipped_ticks > 0
+    # ticks stay on the 100 Hz grid and cover the clip in about its real duration: no accumulated delay
+    assert all(r.time == pytest.approx(r.tick / 100) for r in records)
+    assert records[-1].tick >= 190
+    assert all(r.overrun for r in records)
+    # the velocity limit scales with the slots that passed
+    q = np.array([r.q_cmd for r in records])
+    slots = np.diff([r.tick for r in records])
+    assert np.all(np.abs(np.diff(q, axis=0)) <= arm.max_velocity * (slots[:, None] / 100) + 1e-12)
+
+
+def test_start_pose_is_the_rest_pose_or_given(arm):
+    _, _, records = run(arm, circle_targets(arm), max_ticks=1)
+    first = records[0].q_cmd
+    assert np.all(np.abs(first - arm.rest) <= arm.max_velocity / 100 + 1e-12)
+    loop = ControlLoop(arm, circle_targets(arm), clock=VirtualClock())
+    q0 = loop.initial_pose()
+    got: list[TickRecord] = []
+    loop.on_tick = got.append
+    loop.run(None, q_start=q0)
+    assert not got[0].velocity_limited
+    assert np.linalg.norm(arm.fk(got[0].q_cmd)[0][:3, 3] - got[0].target) <= 1e-3
+    with pytest.raises(ValueError, match=r"Expected a start pose of shape \(6,\), got \(3,\)"):
+        loop.run(None, q_start=np.zeros(3))
+
+
+def test_velocity_scale_caps_every_step(arm):
+    _, summary, records = run(arm, circle_targets(arm), velocity_scale=0.25)
+    q = np.array([r.q_cmd for r in records])
+    assert np.all(np.abs(np.diff(q, axis=0)) <= 0.25 * arm.max_velocity / 100 + 1e-12)
+    assert summary.velocity_limited_ticks > 0
+
+
+def test_summary_counts_and_percentiles(arm):
+    _, summary, records = run(arm, circle_targets(arm))
+    d = summary.to_dict()
+    assert d["ticks"] == len(records)
+    assert d["velocity_limited_ticks"] == sum(r.velocity_limited for r in records)
+    assert d["clamped_ticks"] == 0
+    assert d["ik_error_max_mm"] == pytest.approx(max(r.ik_error for r in records) * 1e3, abs=1e-4)
+    assert d["run_time_s"] == pytest.approx(len(records) / 100)
+    assert d["duration_s"] == pytest.approx(len(records) / 100)
+    assert d["frames"] == 61
+    text = summary.format()
+    assert "dry run" in text and "201 ticks at 100 Hz" in text and "overruns 0" in text
+
+
+def test_clamped_targets_are_flagged(arm):
+    targets = circle_targets(arm)
+    far = targets.raw.copy()
+    far[20:30] = [2.0, 0.0, 0.3]  # out of reach
+    targets = Targets.from_raw(far, frame_time=targets.frame_time, workspace=targets.workspace)
+    _, summary, records = run(arm, targets)
+    assert summary.clamped_ticks == sum(r.clamped for r in records) > 0
+    for r in records:
+        assert np.linalg.norm(r.target - targets.workspace.center) <= targets.workspace.r_max + 1e-9
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"rate": 0.0}, r"--rate: Expected a tick rate > 0 Hz \(got 0.0\)"),
+        ({"rate": math.inf}, r"--rate: Expected a tick rate"),
+        ({"speed": -1.0}, r"--speed: Expected a speed > 0"),
+        ({"start": -0.5}, r"--start: Expected a start time >= 0 s"),
+        ({"start": 1.0, "end": 1.0}, r"--end: Expected an end time after --start \(1 s\)"),
+        ({"max_ticks": 0}, r"--max-ticks: Expected at least 1 tick"),
+        ({"velocity_scale": 1.5}, r"--velocity-scale: Expected a fraction in \(0, 1\]"),
+        ({"ik_iterations": 0}, r"--ik-iterations: Expected at least 1 sweep"),
+        ({"ik_tolerance": 0.0}, r"--ik-tolerance: Expected a tolerance > 0 m"),
+    ],
+    ids=["rate0", "rate-inf", "speed", "start", "end", "max-ticks", "velocity-scale", "ik-iterations", "ik-tol"],
+)
+def test_bad_loop_config(kwargs, match):
+    with pytest.raises(ConfigError, match=match):
+        LoopConfig(**kwargs)
+
+
+def test_start_after_the_clip_is_an_error(arm):
+    with pytest.raises(ConfigError, match=r"--start: Expected a start time before the clip's end \(2 s\)"):
+        ControlLoop(arm, circle_targets(arm), config=LoopConfig(start=5.0), clock=VirtualClock())
+
+
+def test_orientation_targets_reach_the_solver(arm):
+    targets = circle_targets(arm)
+    down = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])  # tool x pointing down
+    rotations = np.broadcast_to(down, (targets.n_frames, 3, 3)).copy()
+    targets = Targets.from_raw(
+        targets.raw,
+        frame_time=targets.frame_time,
+        workspace=targets.workspace,
+        config=MappingConfig(orientation_weight=1.0),
+        rotations=rotations,
+    )
+    loop = ControlLoop(arm, targets, clock=VirtualClock())
+    q0 = loop.initial_pose()
+    records: list[TickRecord] = []
+    loop.on_tick = records.append
+    loop.run(None, q_start=q0)
+    R = arm.fk(records[-1].q_cmd)[0][:3, :3]
+    assert np.degrees(np.arccos(np.clip((np.trace(R.T @ down) - 1) / 2, -1, 1))) < 5
