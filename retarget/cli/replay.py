@@ -243,16 +243,55 @@ def _progress_printer(loop: ControlLoop) -> Callable[[TickRecord], None]:
     return show
 
 
-def build_bus(args: argparse.Namespace, arm: Arm, clock: Clock) -> Bus:
-    """The bus of a replay: the driver on ``--port``, or on an in-process simulated bus sharing ``clock``."""
+@dataclass
+class BusSetup:
+    """The bus of a replay, the clock the loop must run on, and what to undo afterwards."""
+
+    bus: Bus
+    clock: Clock
+    registered: str | None = None  #: name of an in-process simulated bus this run registered
+
+    def release(self) -> None:
+        if self.registered is not None:
+            import sim
+
+            sim.unregister(self.registered)
+
+
+def build_bus(args: argparse.Namespace, arm: Arm) -> BusSetup:
+    """The driver on ``--port``; for a simulated port, the in-process SimBus and the clock shared with it.
+
+    No ``--port``: every servo of the arm simulated in process, wire-time model on.  ``sim://…``: the
+    simulator the URL describes, built here so the loop can share its clock (``--fast`` adds
+    ``clock=virtual``).  A real port runs on the monotonic clock.
+    """
     from drivers import DynamixelBus
+    from retarget.clock import MonotonicClock, VirtualClock
 
-    port = args.port
+    port: str | None = args.port
+    if not is_sim_port(port):
+        clock: Clock = MonotonicClock()
+        return BusSetup(DynamixelBus(arm, port, shutdown=args.shutdown, clock=clock), clock)
+
+    import sim
+    from sim.transport import bus_from_url
+
+    name = None
     if port is None:
-        import sim
-
-        port = sim.attach(sim.SimBus.from_arm(arm, clock=clock))
-    return DynamixelBus(arm, port, shutdown=args.shutdown, clock=clock)
+        simbus = sim.SimBus.from_arm(
+            arm, clock=VirtualClock() if args.fast else MonotonicClock(), faults=sim.Faults(wire=True)
+        )
+    elif port.startswith("sim://@"):
+        simbus = bus_from_url(port)
+    else:
+        url = port + (("&" if "?" in port else "?") + "clock=virtual" if args.fast else "")
+        simbus = bus_from_url(url)
+    if args.fast and not isinstance(simbus.clock, VirtualClock):
+        raise ConfigError("--fast needs a simulated bus on a virtual clock", key="--port", value=port)
+    if port is None or not port.startswith("sim://@"):
+        port = sim.attach(simbus)
+        name = port.removeprefix("sim://@")
+    return BusSetup(DynamixelBus(arm, port, shutdown=args.shutdown, clock=simbus.clock), simbus.clock, name)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -276,30 +315,31 @@ def run(args: argparse.Namespace) -> int:
         loop=args.loop,
         max_ticks=number(args.max_ticks, option="--max-ticks", integer=True),
     )
-    clock: Clock = VirtualClock() if args.fast else MonotonicClock()
+    setup = None if args.dry_run else build_bus(args, inputs.arm)
     telemetry = None
-    if args.telemetry is not None:
-        telemetry = TelemetryWriter(sys.stdout if args.telemetry == "-" else args.telemetry, inputs.arm.joint_names)
-    loop = ControlLoop(inputs.arm, inputs.targets, config=config, clock=clock, clip_name=inputs.clip.name)
-    if args.progress or sys.stderr.isatty():
-        loop.on_progress = _progress_printer(loop)
-    bus = None if args.dry_run else build_bus(args, inputs.arm, clock)
     try:
-        if telemetry is not None:
-            telemetry.open()
+        clock: Clock = setup.clock if setup is not None else VirtualClock() if args.fast else MonotonicClock()
+        loop = ControlLoop(inputs.arm, inputs.targets, config=config, clock=clock, clip_name=inputs.clip.name)
+        if args.progress or sys.stderr.isatty():
+            loop.on_progress = _progress_printer(loop)
+        if args.telemetry is not None:
+            out = sys.stdout if args.telemetry == "-" else args.telemetry
+            telemetry = TelemetryWriter(out, inputs.arm.joint_names).open()
             loop.on_tick = telemetry
         with _sigint_stops(loop):
-            if bus is None:
+            if setup is None:
                 summary = loop.run(None)
             else:
-                bus.connect()
+                setup.bus.connect()
                 try:
-                    summary = loop.run(bus)
+                    summary = loop.run(setup.bus)
                 finally:
-                    bus.close()
+                    setup.bus.close()
     finally:
         if telemetry is not None:
             telemetry.close()
+        if setup is not None:
+            setup.release()
     print(summary.format(), file=sys.stderr)
     if args.json:
         json.dump(summary.to_dict(), sys.stdout, indent=2)
