@@ -58,6 +58,8 @@ __all__ = ["ControlLoop", "LoopConfig", "TickRecord", "run_on_bus"]
 
 log = logging.getLogger(__name__)
 
+_BLOCK = 4096  #: targets are resampled this many slots at a time
+
 
 @dataclass(frozen=True, kw_only=True)
 class LoopConfig:
@@ -164,24 +166,28 @@ class ControlLoop:
                 f"Expected a start time before the clip's end ({end:g} s)", key="--start", value=config.start
             )
         self.window = (float(config.start), float(end))
-        step = config.speed / config.rate  #: clip seconds per tick
+        self.step = step = config.speed / config.rate  #: clip seconds per tick
         span = end - config.start
         if config.loop:
             n = max(1, round(span / step))
         else:
             n = int(math.floor(span / step + 1e-9)) + 1
-        #: clip time of each precomputed tick; a looping run indexes them modulo their count
-        self.clip_times = config.start + np.arange(n) * step
-        positions, rotations, clamped = targets.sample(self.clip_times)
-        self._positions = positions
-        self._rotations = rotations
-        self._clamped = clamped
+        #: slots of one pass over the window (a looping run wraps slot ``k`` to ``k % n_slots``)
+        self.n_slots = n
         self.frames = int(round(span / targets.frame_time)) + 1
+
+    def clip_time(self, i: int) -> float:
+        """Clip seconds of slot ``i`` of a pass (``0 <= i < n_slots``)."""
+        return self.config.start + i * self.step
+
+    def sample(self, first: int, stop: int) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+        """Targets of slots ``first..stop-1`` of a pass: positions ``(n, 3)`` m, rotations or None, clamped ``(n,)``."""
+        return self.targets.sample(self.config.start + np.arange(first, stop) * self.step)
 
     @property
     def n_ticks(self) -> int | None:
-        """Slots the run will take (None: a loop without ``max_ticks`` runs until stopped)."""
-        n = None if self.config.loop else len(self.clip_times)
+        """The most ticks the run will take (None: a loop without ``max_ticks`` runs until stopped)."""
+        n = None if self.config.loop else self.n_slots
         if self.config.max_ticks is not None:
             n = self.config.max_ticks if n is None else min(n, self.config.max_ticks)
         return n
@@ -195,8 +201,9 @@ class ControlLoop:
         from retarget.ik import CCDSolver
 
         solver = CCDSolver(self.arm, max_iterations=iterations, **self._solver_kwargs)
-        rotation = None if self._rotations is None else self._rotations[0]
-        return np.array(solver.solve(self._positions[0], self.arm.home, rotation).q, dtype=np.float64)
+        positions, rotations, _ = self.sample(0, 1)
+        rotation = None if rotations is None else rotations[0]
+        return np.array(solver.solve(positions[0], self.arm.home, rotation).q, dtype=np.float64)
 
     def run(self, bus: Bus | None = None, *, q_start: np.ndarray | None = None) -> RunSummary:
         """Run the loop on a connected ``bus`` (``None``: dry run) and return the summary.
@@ -210,10 +217,12 @@ class ControlLoop:
         dt = 1.0 / cfg.rate
         lower, upper = arm.lower, arm.upper
         vstep = arm.max_velocity * cfg.velocity_scale * dt  # rad per slot
-        positions, rotations, clamped_mask = self._positions, self._rotations, self._clamped
-        clip_times = self.clip_times
-        n_pre = len(clip_times)
-        n_ticks = self.n_ticks
+        n_slots = self.n_slots
+        max_ticks = cfg.max_ticks
+        looping = cfg.loop
+        block0 = block1 = 0  # the slots [block0, block1) of a pass whose targets are sampled
+        positions = clamped_mask = np.empty(0)
+        rotations: np.ndarray | None = None
         solve = self.solver.solve
         on_tick = self.on_tick
         on_progress = self.on_progress
@@ -249,14 +258,18 @@ class ControlLoop:
         wall0 = perf()
         t0 = clock.now()
         k = 0
+        ticks = 0
         try:
-            while (n_ticks is None or k < n_ticks) and not stop.is_set():
+            while (looping or k < n_slots) and (max_ticks is None or ticks < max_ticks) and not stop.is_set():
                 slot_time = k * dt
                 clock.sleep_until(t0 + slot_time)
                 c0 = perf()
-                i = k % n_pre if cfg.loop else k
-                target = positions[i]
-                rotation = None if rotations is None else rotations[i]
+                i = k % n_slots if looping else k
+                if not block0 <= i < block1:  # sample the targets of the next slots, a block at a time
+                    block0, block1 = i, min(i + _BLOCK, n_slots)
+                    positions, rotations, clamped_mask = self.sample(block0, block1)
+                target = positions[i - block0]
+                rotation = None if rotations is None else rotations[i - block0]
                 result = solve(target, q_cmd, rotation)
                 q_ik = result.q
                 elapsed = k - last_slot if last_slot >= 0 else 1
@@ -288,7 +301,8 @@ class ControlLoop:
                 err_l.append(result.error)
                 sweeps_l.append(result.iterations)
                 conv_l.append(result.converged)
-                clamp_l.append(bool(clamped_mask[i]))
+                clamped = bool(clamped_mask[i - block0])
+                clamp_l.append(clamped)
                 vlim_l.append(vlimited)
                 comp_l.append(c1 - c0)
                 bus_l.append(c2 - c1)
@@ -296,7 +310,7 @@ class ControlLoop:
                     record = TickRecord(
                         tick=k,
                         time=slot_time,
-                        clip_time=float(clip_times[i]),
+                        clip_time=cfg.start + i * self.step,
                         target=target,
                         q_cmd=q_cmd,
                         q_present=present,
@@ -305,7 +319,7 @@ class ControlLoop:
                         ik_converged=bool(result.converged),
                         compute_time=c1 - c0,
                         bus_time=c2 - c1,
-                        clamped=bool(clamped_mask[i]),
+                        clamped=clamped,
                         velocity_limited=vlimited,
                         overrun=overrun,
                         bus_retries=retries,
@@ -316,6 +330,7 @@ class ControlLoop:
                         next_progress = slot_time + cfg.progress_every
                         on_progress(record)
                 k = next_k
+                ticks += 1
             interrupted = stop.is_set()
         except KeyboardInterrupt:
             interrupted = True

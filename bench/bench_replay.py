@@ -1,0 +1,173 @@
+"""Benchmark of retargeting and the control loop, checked against the issue's targets.
+
+Run: ``python bench/bench_replay.py [--clip PATH] [--repeat 5] [--bus-ticks 2000]``
+
+1. Offline retargeting of ``../shared/bvh/motion_dance.bvh`` (15.6 s of motion) to wx250s without a
+   bus: the mapping of every frame plus the dry-run loop at 100 Hz (IK warm-started, velocity limits).
+   Target: <= 0.16 s in total (>= 100x real time), IK converged on every reachable (unclamped) tick,
+   per-tick compute p99 <= 1 ms.  BVH parsing is reported beside it (its own bench is bench_bvh.py).
+2. The loop on the simulated bus at 1 Mbps with the wire-time model on, 6 servos (the Koch arm:
+   5 joints + gripper), Return Delay Time 0, unpaced (every tick starts when the last one ended):
+   the wire-limited tick rate is measured on a virtual clock (the simulator advances it by exactly the
+   wire time of each packet, nothing else), then the loop runs on the real clock.
+   Target: >= 90 % of the wire-limited tick rate.
+3. Safety over every clip in ../shared/bvh and both sides (export-style dry runs on wx250s): commanded
+   angles outside the limits and velocity-limit violations.  Target: zero.
+
+Times are ``time.perf_counter``; each case is warmed up once, medians over ``--repeat`` runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import time
+from pathlib import Path
+
+import numpy as np
+
+import retarget
+from retarget.clock import MonotonicClock, VirtualClock
+from retarget.control import ControlLoop, LoopConfig, TickRecord, run_on_bus
+from retarget.mapping import MappingConfig, Side, retarget_targets
+
+REPO = Path(__file__).resolve().parent.parent
+SHARED = Path(os.environ.get("RETARGET_SHARED_BVH", REPO.parent / "shared" / "bvh"))
+
+
+def check(ok: bool) -> str:
+    return "OK  " if ok else "MISS"
+
+
+def offline(clip: Path, repeat: int) -> None:
+    arm = retarget.load_arm("wx250s")
+    parse = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        motion = retarget.load_bvh(clip)
+        motion.positions()
+        parse.append(time.perf_counter() - t0)
+    totals, mapping, summaries = [], [], []
+    for i in range(repeat + 1):
+        t0 = time.perf_counter()
+        targets = retarget_targets(motion, arm)
+        t1 = time.perf_counter()
+        summary = ControlLoop(arm, targets, clock=VirtualClock(), clip_name=clip.name).run(None)
+        t2 = time.perf_counter()
+        if i:  # the first run is the warm-up
+            totals.append(t2 - t0)
+            mapping.append(t1 - t0)
+            summaries.append(summary)
+    total = statistics.median(totals)
+    s = summaries[0]
+    # IK convergence on the reachable ticks: every tick's target is inside the workspace after clamping, so all
+    conv = min(x.ik_converged_pct for x in summaries)
+    p99 = max(x.compute_ms_p99 for x in summaries)
+    duration = motion.duration
+    print(f"1. offline retargeting, {clip.name} ({motion.n_frames} frames, {duration:.1f} s) -> wx250s, no bus")
+    print(f"   BVH parse + FK (not counted)   median {statistics.median(parse) * 1e3:7.1f} ms")
+    print(f"   mapping, all frames            median {statistics.median(mapping) * 1e3:7.1f} ms")
+    print(
+        f"   mapping + loop, {s.ticks} ticks    median {total * 1e3:7.1f} ms  ({duration / total:5.0f}x real time)"
+        f"   target <= 160 ms, >= 100x     {check(total <= 0.16)}"
+    )
+    print(
+        f"   IK converged                   {conv:7.1f} %                    target 100 %              {check(conv == 100)}"
+    )
+    print(
+        f"   per-tick compute p99           {p99:7.3f} ms                   target <= 1 ms            {check(p99 <= 1)}"
+    )
+    print(
+        f"   (ik error median {s.ik_error_median_mm:.2f} mm, p95 {s.ik_error_p95_mm:.2f} mm; "
+        f"{s.ik_sweeps_mean:.1f} sweeps/tick; clamped {s.clamped_ticks}, velocity-limited {s.velocity_limited_ticks})"
+    )
+
+
+def on_bus(clip: Path, ticks: int) -> None:
+    import sim
+    from drivers import DynamixelBus
+
+    arm = retarget.load_arm("koch")
+    motion = retarget.load_bvh(clip)
+    targets = retarget_targets(motion, arm)
+    # unpaced: a rate far above what the bus allows, so every tick starts as soon as the last one ended
+    config = LoopConfig(rate=100_000.0, speed=0.01, loop=True, max_ticks=ticks)
+
+    def run(clock) -> tuple[float, float, float, int]:
+        simbus = sim.SimBus.from_arm(arm, clock=clock, return_delay_time=0, faults=sim.Faults(wire=True))
+        url = sim.attach(simbus)
+        bus = DynamixelBus(arm, url, clock=clock, shutdown="hold", return_delay_us=0)
+        bus_s: list[float] = []
+        loop = ControlLoop(arm, targets, config=config, clock=clock, on_tick=lambda r: bus_s.append(r.bus_time))
+        try:
+            bus.connect()
+            try:
+                c0, w0 = clock.now(), time.perf_counter()
+                summary = loop.run(bus)
+                c1, w1 = clock.now(), time.perf_counter()
+            finally:
+                bus.close()
+        finally:
+            sim.unregister(url.removeprefix("sim://@"))
+        return (c1 - c0), (w1 - w0), float(np.median(bus_s)), summary.ticks
+
+    run(VirtualClock())  # warm-up
+    virtual, _, _, n = run(VirtualClock())
+    wire_rate = n / virtual
+    real, wall, bus_median, n_real = run(MonotonicClock())
+    rate = n_real / wall
+    print(f"2. loop on the simulated bus: koch ({len(arm.servo_ids)} servos), 1 Mbps, wire model on, RDT 0, unpaced")
+    print(f"   wire time per tick (virtual)    {virtual / n * 1e3:7.3f} ms  -> wire-limited {wire_rate:7.0f} ticks/s")
+    print(
+        f"   real clock: {n_real} ticks in {wall:.2f} s    {rate:7.0f} ticks/s = {rate / wire_rate * 100:5.1f} % "
+        f"of wire-limited   target >= 90 %   {check(rate >= 0.9 * wire_rate)}"
+    )
+    print(f"   (bus call median {bus_median * 1e3:.3f} ms per tick: write_goals + read_positions)")
+
+
+def safety() -> None:
+    arm = retarget.load_arm("wx250s")
+    clips = sorted(SHARED.glob("*.bvh"))
+    outside = violations = ticks = 0
+    vmax = arm.max_velocity / 100.0
+    for clip in clips:
+        motion = retarget.load_bvh(clip)
+        for side in (Side.LEFT, Side.RIGHT):
+            targets = retarget_targets(motion, arm, MappingConfig(side=side))
+            q: list[np.ndarray] = []
+
+            def keep(r: TickRecord, q: list[np.ndarray] = q) -> None:
+                q.append(r.q_cmd)
+
+            ControlLoop(arm, targets, clock=VirtualClock(), on_tick=keep).run(None)
+            Q = np.array(q)
+            ticks += len(Q)
+            outside += int(np.count_nonzero((Q < arm.lower) | (Q > arm.upper)))
+            violations += int(np.count_nonzero(np.abs(np.diff(Q, axis=0)) > vmax + 1e-12))
+    print(f"3. safety: {len(clips)} clips x 2 sides, {ticks} ticks on wx250s")
+    print(
+        f"   commanded angles outside limits {outside:7d}                      target 0                  {check(outside == 0)}"
+    )
+    print(
+        f"   velocity-limit violations       {violations:7d}                      target 0                  {check(violations == 0)}"
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--clip", type=Path, default=SHARED / "motion_dance.bvh")
+    parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--bus-ticks", type=int, default=2000)
+    parser.add_argument("--skip-bus", action="store_true")
+    args = parser.parse_args()
+    if not args.clip.is_file():
+        raise SystemExit(f"bench_replay: clip not found: {args.clip} (set RETARGET_SHARED_BVH)")
+    offline(args.clip, args.repeat)
+    if not args.skip_bus:
+        on_bus(args.clip, args.bus_ticks)
+    safety()
+
+
+if __name__ == "__main__":
+    main()
