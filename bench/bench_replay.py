@@ -29,7 +29,7 @@ import numpy as np
 
 import retarget
 from retarget.clock import MonotonicClock, VirtualClock
-from retarget.control import ControlLoop, LoopConfig, TickRecord, run_on_bus
+from retarget.control import ControlLoop, LoopConfig, TickRecord
 from retarget.mapping import MappingConfig, Side, retarget_targets
 
 REPO = Path(__file__).resolve().parent.parent
@@ -38,6 +38,10 @@ SHARED = Path(os.environ.get("RETARGET_SHARED_BVH", REPO.parent / "shared" / "bv
 
 def check(ok: bool) -> str:
     return "OK  " if ok else "MISS"
+
+
+def row(label: str, value: str, target: str, ok: bool) -> None:
+    print(f"   {label:<34} {value:<22} target {target:<20} {check(ok)}")
 
 
 def offline(clip: Path, repeat: int) -> None:
@@ -66,18 +70,12 @@ def offline(clip: Path, repeat: int) -> None:
     p99 = max(x.compute_ms_p99 for x in summaries)
     duration = motion.duration
     print(f"1. offline retargeting, {clip.name} ({motion.n_frames} frames, {duration:.1f} s) -> wx250s, no bus")
-    print(f"   BVH parse + FK (not counted)   median {statistics.median(parse) * 1e3:7.1f} ms")
-    print(f"   mapping, all frames            median {statistics.median(mapping) * 1e3:7.1f} ms")
-    print(
-        f"   mapping + loop, {s.ticks} ticks    median {total * 1e3:7.1f} ms  ({duration / total:5.0f}x real time)"
-        f"   target <= 160 ms, >= 100x     {check(total <= 0.16)}"
-    )
-    print(
-        f"   IK converged                   {conv:7.1f} %                    target 100 %              {check(conv == 100)}"
-    )
-    print(
-        f"   per-tick compute p99           {p99:7.3f} ms                   target <= 1 ms            {check(p99 <= 1)}"
-    )
+    print(f"   BVH parse + FK (not counted)       median {statistics.median(parse) * 1e3:.1f} ms")
+    print(f"   mapping, all frames                median {statistics.median(mapping) * 1e3:.1f} ms")
+    row(f"mapping + loop, {s.ticks} ticks", f"{total * 1e3:.1f} ms", "<= 160 ms", total <= 0.16)
+    row("real-time factor", f"{duration / total:.0f}x", ">= 100x", duration / total >= 100)
+    row("IK converged", f"{conv:.1f} %", "100 %", conv == 100)
+    row("per-tick compute p99", f"{p99:.3f} ms", "<= 1 ms", p99 <= 1)
     print(
         f"   (ik error median {s.ik_error_median_mm:.2f} mm, p95 {s.ik_error_p95_mm:.2f} mm; "
         f"{s.ik_sweeps_mean:.1f} sweeps/tick; clamped {s.clamped_ticks}, velocity-limited {s.velocity_limited_ticks})"
@@ -146,12 +144,8 @@ def safety() -> None:
             outside += int(np.count_nonzero((Q < arm.lower) | (Q > arm.upper)))
             violations += int(np.count_nonzero(np.abs(np.diff(Q, axis=0)) > vmax + 1e-12))
     print(f"3. safety: {len(clips)} clips x 2 sides, {ticks} ticks on wx250s")
-    print(
-        f"   commanded angles outside limits {outside:7d}                      target 0                  {check(outside == 0)}"
-    )
-    print(
-        f"   velocity-limit violations       {violations:7d}                      target 0                  {check(violations == 0)}"
-    )
+    row("commanded angles outside limits", str(outside), "0", outside == 0)
+    row("velocity-limit violations", str(violations), "0", violations == 0)
 
 
 def main() -> None:
