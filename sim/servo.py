@@ -142,10 +142,14 @@ class SimServo:
 
     @property
     def torque(self) -> bool:
+        """Torque Enable, now."""
+        self.update()
         return bool(self._mem[64])
 
     @property
     def hardware_error(self) -> int:
+        """Hardware Error Status, now."""
+        self.update()
         return self._mem[70]
 
     def error_byte(self, error: int) -> int:
