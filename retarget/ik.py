@@ -334,10 +334,12 @@ class CCDSolver:
         sweep = self._sweep
         stall = self.stall_ratio
         accel = self.accel_ratio
+        fresh: tuple | None = f  # the pivot/axis buffers hold the forward pass of q
         while sweeps < budget:
             sweeps += 1
             before = q[:]
-            err2 = sweep(q, tx, ty, tz, tol2)
+            err2 = sweep(q, tx, ty, tz, tol2, fresh)
+            fresh = None
             if err2 > tol2 and err2 > prev2 * accel:  # slow progress: extrapolate along the sweep's step
                 err2 = self._extrapolate(q, before, err2, tx, ty, tz)
             if err2 < best2:
@@ -346,14 +348,15 @@ class CCDSolver:
                     break
             if err2 > prev2 * stall:  # stalled: most often a joint pinned on a limit
                 if not can_restart or restarts >= self.restarts:
-                    if err2 >= prev2:  # no progress at all: more sweeps will not help
+                    # out of reach or out of seeds: stop once a sweep gains less than 1% of the tolerance
+                    if math.sqrt(prev2) - math.sqrt(err2) < 0.01 * tol:
                         break
                 else:
                     restarts += 1
                     if rng is None:
                         rng = random.Random(self.seed)
                     q = self._restart_seed(rng)
-                    f = self._fk(q)
+                    f = fresh = self._fk(q)
                     dx, dy, dz = f[0] - tx, f[1] - ty, f[2] - tz
                     err2 = dx * dx + dy * dy + dz * dz
             prev2 = err2
@@ -389,9 +392,13 @@ class CCDSolver:
         """A restart seed: uniform inside the limits (the first sweep then turns the waist to the target)."""
         return [rng.uniform(lo, hi) for lo, hi in zip(self._lo, self._hi, strict=True)]
 
-    def _sweep(self, q: list[float], tx: float, ty: float, tz: float, tol2: float) -> float:
-        """One tip-to-base sweep on ``q`` (in place); returns the squared distance after it."""
-        ex, ey, ez = self._fk(q)[:3]
+    def _sweep(self, q: list[float], tx: float, ty: float, tz: float, tol2: float, fresh: tuple | None) -> float:
+        """One tip-to-base sweep on ``q`` (in place); returns the squared distance after it.
+
+        ``fresh`` is the result of ``_fk(q)`` when the buffers already hold it (saves a forward pass).
+        """
+        f = self._fk(q) if fresh is None else fresh
+        ex, ey, ez = f[0], f[1], f[2]
         px, py, pz, ax, ay, az = self._px, self._py, self._pz, self._ax, self._ay, self._az
         lower, upper, w = self._lo, self._hi, self.weights
         lev2 = self._lever2
@@ -623,12 +630,20 @@ def _angle(f: Sequence[float], d: Sequence[Sequence[float]]) -> float:
 
 
 def _vec3(value: Sequence[float] | np.ndarray, what: str) -> tuple[float, float, float]:
-    v = np.asarray(value, dtype=np.float64)
-    if v.shape != (3,):
-        raise ValueError(f"Expected {what} of shape (3,), got {v.shape}")
-    if not np.all(np.isfinite(v)):
-        raise ValueError(f"Expected a finite {what}, got {v.tolist()}")
-    x, y, z = v.tolist()
+    if isinstance(value, np.ndarray) and value.shape == (3,):
+        x, y, z = value.tolist()
+    elif isinstance(value, list | tuple) and len(value) == 3:
+        try:
+            x, y, z = float(value[0]), float(value[1]), float(value[2])
+        except (TypeError, ValueError):
+            raise ValueError(f"Expected {what} of 3 numbers, got {value!r}") from None
+    else:
+        v = np.asarray(value, dtype=np.float64)
+        if v.shape != (3,):
+            raise ValueError(f"Expected {what} of shape (3,), got {v.shape}")
+        x, y, z = v.tolist()
+    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+        raise ValueError(f"Expected a finite {what}, got {[x, y, z]}")
     return x, y, z
 
 
