@@ -1,0 +1,398 @@
+"""Read BVH motion capture files: ``load_bvh(path) -> Motion``.
+
+The parser accepts what real exporters write: any order of rotation channels,
+differing per joint; position channels on any joint (they replace that
+joint's OFFSET); End Sites; LF, CRLF or CR-only line ends; tabs; scientific
+notation; ``Frames: 0``; names with spaces or colons, kept whole; trailing
+whitespace and a missing final newline.
+
+Everything else is a :class:`~retarget.errors.BvhError` naming the file and
+line and saying what was expected and what was found, e.g.
+``clip.bvh:190: Expected 93 values on frame line, got 92``.  The parser never
+loops on a short file and never returns partial data.
+
+The MOTION block is read in bulk (see :mod:`retarget.bvh_numbers`): token
+boundaries, per-line counts and the numbers themselves are computed for the
+whole block at once; only failing tokens are looked at one by one.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import re
+from os import PathLike
+from pathlib import Path
+
+import numpy as np
+
+from retarget import bvh_numbers
+from retarget.errors import BvhError
+from retarget.motion import ChannelLayout, EndSite, Motion
+
+log = logging.getLogger(__name__)
+
+#: The bundled demo clip (written by ``scripts/make_demo_clip.py``): a right arm reaching, waving and pointing.
+DEMO_CLIP: Path = Path(__file__).resolve().parent / "data" / "demo.bvh"
+
+#: Channel names a BVH file may use, in their canonical spelling.
+CHANNEL_NAMES: tuple[str, ...] = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
+_CHANNEL_LOOKUP = {name.lower(): name for name in CHANNEL_NAMES}
+
+_FRAMES_RE = re.compile(r"Frames\s*:\s*(\S*)\s*", re.IGNORECASE)
+_FRAME_TIME_RE = re.compile(r"Frame\s+Time\s*:\s*(\S*)\s*", re.IGNORECASE)
+_NUMBER_RE = re.compile(rb"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
+_NONFINITE_RE = re.compile(rb"[+-]?(?:nan|inf|infinity)(?:\(\w*\))?", re.IGNORECASE)
+
+
+def load_bvh(path: str | PathLike[str]) -> Motion:
+    """Read the BVH file at ``path``.
+
+    Raises :class:`~retarget.errors.BvhError` for a file that is not valid BVH
+    and ``OSError`` for one that cannot be read.
+    """
+    p = Path(path)
+    data = p.read_bytes()
+    return _parse(data, path=p)
+
+
+def parse_bvh(text: str | bytes, *, path: str | PathLike[str] | None = None) -> Motion:
+    """Read BVH from a string (or bytes); ``path`` only names the source in errors and ``Motion.path``."""
+    data = text.encode("utf-8") if isinstance(text, str) else bytes(text)
+    return _parse(data, path=None if path is None else Path(path))
+
+
+# --------------------------------------------------------------------------------------------- whole file
+
+
+def _parse(data: bytes, *, path: Path | None) -> Motion:
+    if data.startswith(b"\xef\xbb\xbf"):
+        data = data[3:]
+    if not data.strip():
+        raise BvhError("Expected a BVH file starting with HIERARCHY, got an empty file", path=path, line=1)
+    _reject_binary(data, path)
+    if b"\r" in data:
+        data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+    header = _Header(data, path)
+    header.parse()
+    channels = _read_frames(data, header, path)
+    return Motion(
+        joint_names=tuple(j.name for j in header.joints),
+        parents=np.array([j.parent for j in header.joints], dtype=np.intp),
+        offsets=np.array([j.offset for j in header.joints], dtype=np.float64).reshape(-1, 3),
+        layout=tuple(ChannelLayout(j.channel_names, j.first_column) for j in header.joints),
+        end_sites=tuple(EndSite(parent=e[0], offset=e[1]) for e in header.end_sites),
+        channels=channels,
+        frame_time=header.frame_time,
+        path=path,
+    )
+
+
+def _reject_binary(data: bytes, path: Path | None) -> None:
+    nul = data.find(b"\x00")
+    head = data[:4096]
+    control = sum(head.count(bytes([c])) for c in (*range(1, 9), *range(14, 32)))
+    if nul >= 0 or control > len(head) // 20:
+        where = nul if nul >= 0 else 0
+        line = data.count(b"\n", 0, where) + 1
+        raise BvhError("Expected a text BVH file, got binary data", path=path, line=line)
+
+
+class _Joint:
+    __slots__ = ("name", "parent", "offset", "channel_names", "first_column", "line")
+
+    def __init__(self, name: str, parent: int, line: int):
+        self.name = name
+        self.parent = parent
+        self.offset: tuple[float, float, float] | None = None
+        self.channel_names: tuple[str, ...] | None = None
+        self.first_column = 0
+        self.line = line
+
+
+class _Header:
+    """Recursive-descent reader of HIERARCHY and the two MOTION header lines, one logical line at a time."""
+
+    def __init__(self, data: bytes, path: Path | None):
+        self.data = data
+        self.path = path
+        self.pos = 0  # byte offset of the next unread line
+        self.line = 0  # number of the last line read
+        self.joints: list[_Joint] = []
+        self.end_sites: list[tuple[int, tuple[float, float, float]]] = []
+        self.n_channels = 0
+        self.n_frames = 0
+        self.frame_time = 0.0
+        self.data_start = len(data)  # byte offset of the first frame line
+        self.data_first_line = 1
+
+    # -- lines
+    def _error(self, message: str, line: int | None = None) -> BvhError:
+        return BvhError(message, path=self.path, line=self.line if line is None else line)
+
+    def _next_line(self) -> str | None:
+        """The next non-blank line, stripped; None at the end of the file."""
+        data = self.data
+        while self.pos < len(data):
+            end = data.find(b"\n", self.pos)
+            if end < 0:
+                end = len(data)
+            raw = data[self.pos : end]
+            self.pos = end + 1
+            self.line += 1
+            text = raw.strip()
+            if text:
+                try:
+                    return text.decode("utf-8")
+                except UnicodeDecodeError:
+                    return text.decode("latin-1")
+        return None
+
+    def _expect_line(self, what: str) -> str:
+        text = self._next_line()
+        if text is None:
+            self.line += 1
+            raise self._error(f"Expected {what}, got end of file")
+        return text
+
+    # -- grammar
+    def parse(self) -> None:
+        first = self._expect_line("HIERARCHY")
+        if first.split()[0].upper() != "HIERARCHY":
+            raise self._error(f"Expected HIERARCHY, got {_show(first)}")
+        if first.split()[1:]:
+            raise self._error(f"Expected HIERARCHY alone on its line, got {_show(first)}")
+        text = self._expect_line("ROOT")
+        if _keyword(text) != "ROOT":
+            raise self._error(f"Expected ROOT after HIERARCHY, got {_show(text)}")
+        while True:
+            self._joint(text, parent=-1, keyword="ROOT")
+            text = self._expect_line("MOTION after the hierarchy")
+            kw = _keyword(text)
+            if kw == "MOTION":
+                break
+            if text.startswith("}"):
+                raise self._error("Expected MOTION after the hierarchy, got an extra '}' (unbalanced braces)")
+            if kw != "ROOT":
+                raise self._error(f"Expected MOTION after the hierarchy, got {_show(text)}")
+        if text.split()[1:]:
+            raise self._error(f"Expected MOTION alone on its line, got {_show(text)}")
+        self._motion_header()
+
+    def _joint(self, text: str, *, parent: int, keyword: str) -> None:
+        opened_line = self.line
+        name, brace = _name_and_brace(text, keyword)
+        if not name:
+            raise self._error(f"Expected a joint name after {keyword}, got nothing")
+        joint = _Joint(name, parent, opened_line)
+        index = len(self.joints)
+        self.joints.append(joint)
+        if not brace:
+            self._open_brace(f"{keyword} {name!r}")
+        while True:
+            text = self._expect_line(f"'}}' to close {keyword} {name!r} (opened at line {opened_line})")
+            kw = _keyword(text)
+            if kw == "OFFSET":
+                if joint.offset is not None:
+                    raise self._error(f"Expected one OFFSET in {keyword} {name!r}, got a second one")
+                joint.offset = self._offset(text)
+            elif kw == "CHANNELS":
+                if joint.channel_names is not None:
+                    raise self._error(f"Expected one CHANNELS line in {keyword} {name!r}, got a second one")
+                joint.channel_names = self._channels(text)
+                joint.first_column = self.n_channels
+                self.n_channels += len(joint.channel_names)
+            elif kw == "JOINT":
+                self._require_header(joint, keyword)
+                self._joint(text, parent=index, keyword="JOINT")
+            elif kw == "END":
+                self._require_header(joint, keyword)
+                self._end_site(text, parent=index)
+            elif text == "}":
+                self._require_header(joint, keyword)
+                return
+            elif kw in ("MOTION", "ROOT"):
+                raise self._error(
+                    f"Expected '}}' to close {keyword} {name!r} (opened at line {opened_line}), got {_show(text)}"
+                )
+            elif text.startswith("}"):
+                raise self._error(f"Expected '}}' alone on its line, got {_show(text)}")
+            else:
+                raise self._error(
+                    f"Expected OFFSET, CHANNELS, JOINT, End Site or '}}' in {keyword} {name!r}, got {_show(text)}"
+                )
+
+    def _require_header(self, joint: _Joint, keyword: str) -> None:
+        if joint.offset is None:
+            raise self._error(f"Expected OFFSET in {keyword} {joint.name!r} (line {joint.line}) before its children")
+        if joint.channel_names is None:
+            raise self._error(f"Expected CHANNELS in {keyword} {joint.name!r} (line {joint.line}) before its children")
+
+    def _open_brace(self, what: str) -> None:
+        text = self._expect_line(f"'{{' after {what}")
+        if text != "{":
+            raise self._error(f"Expected '{{' after {what}, got {_show(text)}")
+
+    def _end_site(self, text: str, *, parent: int) -> None:
+        opened_line = self.line
+        words = text.split()
+        if len(words) < 2 or words[1].lower() != "site" or words[2:] not in ([], ["{"]):
+            raise self._error(f"Expected 'End Site', got {_show(text)}")
+        if words[2:] != ["{"]:
+            self._open_brace("End Site")
+        offset = None
+        while True:
+            text = self._expect_line(f"'}}' to close the End Site (opened at line {opened_line})")
+            kw = _keyword(text)
+            if kw == "OFFSET" and offset is None:
+                offset = self._offset(text)
+            elif text == "}":
+                if offset is None:
+                    raise self._error("Expected OFFSET in the End Site before '}'")
+                self.end_sites.append((parent, offset))
+                return
+            else:
+                raise self._error(f"Expected OFFSET or '}}' in the End Site, got {_show(text)}")
+
+    def _offset(self, text: str) -> tuple[float, float, float]:
+        words = text.split()[1:]
+        if len(words) != 3:
+            raise self._error(f"Expected 3 numbers after OFFSET, got {len(words)}")
+        values = tuple(self._number(w, "OFFSET") for w in words)
+        return values  # type: ignore[return-value]
+
+    def _number(self, word: str, where: str) -> float:
+        if not _NUMBER_RE.fullmatch(word.encode("utf-8", "replace")):
+            raise self._error(f"Expected a number in {where}, got {word!r}")
+        value = float(word)
+        if not math.isfinite(value):
+            raise self._error(f"Expected a finite number in {where}, got {word!r}")
+        return value
+
+    def _channels(self, text: str) -> tuple[str, ...]:
+        words = text.split()[1:]
+        if not words or not words[0].isdigit():
+            raise self._error(f"Expected a channel count after CHANNELS, got {_show(' '.join(words[:1]) or '')}")
+        count = int(words[0])
+        names = words[1:]
+        if len(names) != count:
+            raise self._error(f"Expected {count} channel names after 'CHANNELS {count}', got {len(names)}")
+        canonical = []
+        for name in names:
+            channel = _CHANNEL_LOOKUP.get(name.lower())
+            if channel is None:
+                raise self._error(f"Expected a channel name ({', '.join(CHANNEL_NAMES)}), got {name!r}")
+            if channel.endswith("position") and channel in canonical:
+                raise self._error(f"Expected each position channel once, got {channel} twice")
+            canonical.append(channel)
+        return tuple(canonical)
+
+    def _motion_header(self) -> None:
+        text = self._expect_line("'Frames: <count>' after MOTION")
+        m = _FRAMES_RE.fullmatch(text)
+        if not m:
+            raise self._error(f"Expected 'Frames: <count>' after MOTION, got {_show(text)}")
+        if not m.group(1).isdigit():
+            raise self._error(f"Expected a whole number of frames, got {m.group(1)!r}")
+        self.n_frames = int(m.group(1))
+        text = self._expect_line("'Frame Time: <seconds>' after Frames")
+        m = _FRAME_TIME_RE.fullmatch(text)
+        if not m:
+            raise self._error(f"Expected 'Frame Time: <seconds>' after Frames, got {_show(text)}")
+        word = m.group(1)
+        try:
+            frame_time = float(word) if _NUMBER_RE.fullmatch(word.encode("utf-8", "replace")) else math.nan
+        except ValueError:
+            frame_time = math.nan
+        if not (math.isfinite(frame_time) and frame_time > 0):
+            raise self._error(f"Expected a positive frame time in seconds, got {word!r}")
+        self.frame_time = frame_time
+        self.data_start = min(self.pos, len(self.data))
+        self.data_first_line = self.line + 1
+        if self.n_channels == 0:
+            raise self._error("Expected at least one channel in the hierarchy, got none", line=2)
+
+
+def _keyword(text: str) -> str:
+    return text.split(None, 1)[0].upper()
+
+
+def _name_and_brace(text: str, keyword: str) -> tuple[str, bool]:
+    """The joint name after ROOT/JOINT (the rest of the line, kept whole) and whether a '{' ends the line."""
+    rest = text[len(keyword) :].strip() if text[: len(keyword)].upper() == keyword else ""
+    brace = False
+    if rest.endswith("{") and (rest == "{" or rest[-2].isspace()):
+        rest, brace = rest[:-1].rstrip(), True
+    return rest, brace
+
+
+def _show(text: str, limit: int = 60) -> str:
+    return repr(text if len(text) <= limit else text[:limit] + "...")
+
+
+# ----------------------------------------------------------------------------------------------- MOTION
+
+
+def _read_frames(data: bytes, header: _Header, path: Path | None) -> np.ndarray:
+    """``(n_frames, n_channels)`` float64 from the frame lines; every count and value checked."""
+    block = data[header.data_start :]
+    n_frames, n_channels, first_line = header.n_frames, header.n_channels, header.data_first_line
+    padded = bvh_numbers.pad_block(block)
+    b = padded[bvh_numbers.PAD : bvh_numbers.PAD + len(block)]
+    starts, ends = bvh_numbers.token_bounds(b)
+    breaks = np.flatnonzero(b == 10)  # line i of the block ends at breaks[i]
+    line_starts = np.concatenate(([0], breaks + 1))
+    first_token = np.searchsorted(starts, line_starts)
+    counts = np.diff(np.append(first_token, starts.size))
+    filled = np.flatnonzero(counts)  # block line index of each non-blank line
+
+    def line_of(token: int) -> int:
+        return first_line + int(np.searchsorted(breaks, starts[token]))
+
+    problem: tuple[int, str] | None = None  # (file line, message): the first in file order wins
+    wrong = np.flatnonzero(counts[filled[:n_frames]] != n_channels)
+    if wrong.size:
+        k = filled[wrong[0]]
+        problem = (first_line + int(k), f"Expected {n_channels} values on frame line, got {int(counts[k])}")
+    if filled.size > n_frames:
+        k = filled[n_frames]
+        extra = (
+            first_line + int(k),
+            f"Expected {n_frames} frame lines (Frames: {n_frames}), got more: extra data after the last frame",
+        )
+        problem = extra if problem is None or extra[0] < problem[0] else problem
+
+    values, slow = bvh_numbers.parse_tokens(padded, starts, ends)
+    bad_value = _read_slow_tokens(block, starts, ends, values, slow)
+    if bad_value is not None:
+        token, message = bad_value
+        candidate = (line_of(token), message)
+        if problem is None or candidate[0] < problem[0]:
+            problem = candidate
+    if problem is None and not np.isfinite(values).all():
+        token = int(np.flatnonzero(~np.isfinite(values))[0])
+        problem = (line_of(token), f"Expected a finite number, got {block[starts[token] : ends[token]].decode()!r}")
+    if problem is not None:
+        raise BvhError(problem[1], path=path, line=problem[0])
+    if filled.size < n_frames:
+        n_lines = breaks.size + (1 if block and not block.endswith(b"\n") else 0)
+        raise BvhError(
+            f"Expected {n_frames} frame lines (Frames: {n_frames}), got {filled.size}: the file ends early",
+            path=path,
+            line=first_line + n_lines,
+        )
+    return values.reshape(n_frames, n_channels)
+
+
+def _read_slow_tokens(block, starts, ends, values, slow) -> tuple[int, str] | None:
+    """Parse the tokens the fast path flagged with ``float()``; return the first bad one as (token, message)."""
+    for i in np.flatnonzero(slow):
+        word = block[starts[i] : ends[i]]
+        if _NUMBER_RE.fullmatch(word):
+            values[i] = float(word)
+            continue
+        shown = word.decode("utf-8", "replace")
+        if _NONFINITE_RE.fullmatch(word):
+            return int(i), f"Expected a finite number, got {shown!r}"
+        return int(i), f"Expected a number, got {shown!r}"
+    return None

@@ -1,0 +1,338 @@
+"""``Motion``: a parsed BVH clip, with forward kinematics for all frames at once.
+
+Frames and units: positions are in the file's units (usually centimetres) in
+the BVH world frame (usually Y up).  Angles inside are radians; the raw
+``channels`` keep the file's degrees.
+
+FK convention: a joint's local transform is its translation (OFFSET, or its
+position channels in place of the OFFSET components they name) followed by
+its rotation channels composed in listed order as intrinsic rotations
+(``Zrotation Xrotation Yrotation`` -> ``Rz @ Rx @ Ry``)::
+
+    R_world[j] = R_world[parent] @ R_local[j]
+    p_world[j] = p_world[parent] + R_world[parent] @ t_local[j]
+
+Results are computed once, vectorised over frames (a loop over joints only),
+cached, and returned read-only.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from retarget import skeleton
+from retarget.rotations import AXIS_INDEX, compose_cos_sin
+
+
+@dataclass(frozen=True)
+class ChannelLayout:
+    """The CHANNELS of one joint: canonical names (``"Zrotation"``, ...) and the first column in ``Motion.channels``."""
+
+    names: tuple[str, ...]
+    first_column: int
+
+    @property
+    def rotation_order(self) -> str:
+        """Axis letters of the rotation channels in file order, e.g. ``"ZXY"`` (``""`` if none)."""
+        return "".join(n[0] for n in self.names if n.endswith("rotation"))
+
+    @property
+    def position_axes(self) -> str:
+        """Axis letters of the position channels in file order, e.g. ``"XYZ"`` (``""`` if none)."""
+        return "".join(n[0] for n in self.names if n.endswith("position"))
+
+    def columns(self, kind: str) -> list[int]:
+        """Columns in ``Motion.channels`` of the ``"rotation"`` or ``"position"`` channels, in file order."""
+        return [self.first_column + i for i, n in enumerate(self.names) if n.endswith(kind)]
+
+
+@dataclass(frozen=True)
+class EndSite:
+    """An End Site: the joint it hangs from and its OFFSET (file units) in that joint's frame."""
+
+    parent: int
+    offset: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class ArmChain:
+    """Shoulder (glenohumeral), elbow and wrist of one arm over a clip.
+
+    ``points``: ``(n_frames, 3, 3)`` float64, file units, BVH world frame;
+    ``points[:, 0]`` shoulder, ``[:, 1]`` elbow, ``[:, 2]`` wrist.
+    ``names``: the joints used; an End Site wrist is named ``"forearm.L/End Site"``.
+    ``indices``: joint indices of shoulder and elbow, and of the wrist joint
+    (or, when ``wrist_is_end_site``, the index into ``Motion.end_sites``).
+    """
+
+    side: str
+    names: tuple[str, str, str]
+    indices: tuple[int, int, int]
+    wrist_is_end_site: bool
+    points: np.ndarray = field(repr=False, compare=False)
+
+    @property
+    def bone_lengths(self) -> tuple[float, float]:
+        """Median upper-arm and forearm lengths over the clip (file units)."""
+        upper = np.linalg.norm(self.points[:, 1] - self.points[:, 0], axis=-1)
+        fore = np.linalg.norm(self.points[:, 2] - self.points[:, 1], axis=-1)
+        if upper.size == 0:
+            return 0.0, 0.0
+        return float(np.median(upper)), float(np.median(fore))
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    a.flags.writeable = False
+    return a
+
+
+class Motion:
+    """A BVH clip: skeleton, raw channels and cached FK.
+
+    Attributes:
+        joint_names: ROOT and JOINT names in file order (End Sites excluded).
+        parents: ``(n_joints,)`` int, parent joint index, -1 for a root.
+        offsets: ``(n_joints, 3)`` float64 OFFSETs, file units.
+        layout: per joint, its :class:`ChannelLayout`.
+        end_sites: the End Sites, in file order.
+        channels: ``(n_frames, n_channels)`` float64, raw values in file order (degrees, file units).
+        frame_time: seconds per frame.
+        path: the file read, or None.
+    """
+
+    def __init__(
+        self,
+        *,
+        joint_names: tuple[str, ...],
+        parents: np.ndarray,
+        offsets: np.ndarray,
+        layout: tuple[ChannelLayout, ...],
+        end_sites: tuple[EndSite, ...],
+        channels: np.ndarray,
+        frame_time: float,
+        path: Path | None = None,
+    ):
+        n = len(joint_names)
+        parents = np.asarray(parents, dtype=np.intp)
+        offsets = np.asarray(offsets, dtype=np.float64).reshape(n, 3)
+        channels = np.asarray(channels, dtype=np.float64)
+        if parents.shape != (n,) or len(layout) != n:
+            raise ValueError(f"Expected {n} parents and layouts, got {parents.shape} and {len(layout)}")
+        if any(p >= j for j, p in enumerate(parents)):
+            raise ValueError("Expected every parent index to come before its child")
+        n_channels = sum(len(c.names) for c in layout)
+        if channels.ndim != 2 or channels.shape[1] != n_channels:
+            raise ValueError(f"Expected channels of shape (n_frames, {n_channels}), got {channels.shape}")
+        if not (frame_time > 0):
+            raise ValueError(f"Expected a positive frame time, got {frame_time}")
+        self.joint_names = tuple(joint_names)
+        self.parents = _readonly(parents)
+        self.offsets = _readonly(offsets)
+        self.layout = tuple(layout)
+        self.end_sites = tuple(end_sites)
+        self.channels = _readonly(channels)
+        self.frame_time = float(frame_time)
+        self.path = path
+        self._positions: np.ndarray | None = None
+        self._rotations: np.ndarray | None = None
+        self._world: tuple[np.ndarray, np.ndarray] | None = None  # joint-major (J, n, 3, 3), (J, n, 3)
+        self._world_full = False
+        self._has_children = np.zeros(n, dtype=bool)
+        self._has_children[parents[parents >= 0]] = True
+        for e in end_sites:
+            self._has_children[e.parent] = True
+
+    # ------------------------------------------------------------------------------------------ info
+    @property
+    def n_frames(self) -> int:
+        return int(self.channels.shape[0])
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.joint_names)
+
+    @property
+    def fps(self) -> float:
+        """Frames per second, ``1 / frame_time``."""
+        return 1.0 / self.frame_time
+
+    @property
+    def duration(self) -> float:
+        """Seconds of playback, ``n_frames * frame_time``."""
+        return self.n_frames * self.frame_time
+
+    @property
+    def rotation_orders(self) -> tuple[str, ...]:
+        """Per joint, its rotation channel axes in file order (``"ZXY"``; ``""`` if none)."""
+        return tuple(c.rotation_order for c in self.layout)
+
+    def joint_index(self, name: str) -> int:
+        """Index of the joint called ``name`` (exact match); ``KeyError`` listing nothing else if absent."""
+        try:
+            return self.joint_names.index(name)
+        except ValueError:
+            raise KeyError(f"Expected a joint name of this clip, got {name!r}") from None
+
+    def children(self, index: int) -> list[int]:
+        """Joint indices whose parent is ``index``."""
+        return [int(c) for c in np.flatnonzero(self.parents == index)]
+
+    def rest_positions(self) -> np.ndarray:
+        """``(n_joints, 3)`` joint positions from OFFSETs alone (no channels), file units."""
+        out = np.zeros((self.n_joints, 3))
+        for j, p in enumerate(self.parents):
+            out[j] = self.offsets[j] + (out[p] if p >= 0 else 0.0)
+        return out
+
+    def __repr__(self) -> str:
+        src = f" {self.path.name!r}" if self.path else ""
+        return f"<Motion{src}: {self.n_joints} joints, {self.n_frames} frames at {self.fps:.4g} fps>"
+
+    # -------------------------------------------------------------------------------------------- FK
+    def positions(self) -> np.ndarray:
+        """``(n_frames, n_joints, 3)`` float64 global joint positions, file units, BVH world frame."""
+        if self._positions is None:
+            _, world_pos = self._fk(full=False)
+            self._positions = _readonly(world_pos.transpose(1, 0, 2))
+        return self._positions
+
+    def global_transforms(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(rotations (n_frames, n_joints, 3, 3), positions (n_frames, n_joints, 3))``: joint frame -> world."""
+        if self._rotations is None:
+            world_rot, _ = self._fk(full=True)
+            self._rotations = _readonly(world_rot.transpose(1, 0, 2, 3))
+        return self._rotations, self.positions()
+
+    def end_site_positions(self) -> np.ndarray:
+        """``(n_frames, n_end_sites, 3)`` float64 global End Site positions, file units."""
+        out = np.empty((self.n_frames, len(self.end_sites), 3))
+        if not self.end_sites:
+            return _readonly(out)
+        world_rot, world_pos = self._fk(full=False)
+        for k, e in enumerate(self.end_sites):
+            out[:, k] = world_pos[e.parent] + world_rot[e.parent] @ np.asarray(e.offset)
+        return _readonly(out)
+
+    def _fk(self, *, full: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Joint-major world rotations ``(J, n, 3, 3)`` and positions ``(J, n, 3)``.
+
+        With ``full=False`` rotations of joints without children or End Sites
+        are left uncomputed (positions do not need them).
+        """
+        if self._world is not None and (not full or self._world_full):
+            return self._world
+        n, nj = self.n_frames, self.n_joints
+        need_rot = np.ones(nj, dtype=bool) if full else self._has_children
+        local_rot = self._local_rotations(need_rot)
+        world_rot = np.empty((nj, n, 3, 3))
+        world_pos = np.empty((nj, n, 3))
+        columns = self.channels.T  # (C, n) view
+        for j in range(nj):
+            p = self.parents[j]
+            t = self._local_translation(j, columns)
+            if p < 0:
+                world_pos[j] = t
+                if need_rot[j]:
+                    world_rot[j] = local_rot[j]
+                continue
+            if t.ndim == 1:
+                np.matmul(world_rot[p], t, out=world_pos[j])
+            else:
+                np.einsum("nij,nj->ni", world_rot[p], t, out=world_pos[j])
+            world_pos[j] += world_pos[p]
+            if need_rot[j]:
+                np.matmul(world_rot[p], local_rot[j], out=world_rot[j])
+        self._world = (world_rot, world_pos)
+        self._world_full = full
+        return self._world
+
+    def _local_translation(self, j: int, columns: np.ndarray) -> np.ndarray:
+        """``(3,)`` OFFSET, or ``(n, 3)`` when position channels replace some of its components."""
+        lay = self.layout[j]
+        axes = lay.position_axes
+        if not axes:
+            return self.offsets[j]
+        t = np.empty((self.n_frames, 3))
+        t[:] = self.offsets[j]
+        for axis, col in zip(axes, lay.columns("position"), strict=True):
+            t[:, AXIS_INDEX[axis]] = columns[col]
+        return t
+
+    def _local_rotations(self, need: np.ndarray) -> np.ndarray:
+        """``(J, n, 3, 3)`` local rotations (identity rows where not ``need``), grouped by rotation order."""
+        n, nj = self.n_frames, self.n_joints
+        out = np.empty((nj, n, 3, 3))
+        groups: dict[str, list[int]] = {}
+        for j in range(nj):
+            if need[j]:
+                groups.setdefault(self.layout[j].rotation_order, []).append(j)
+        columns = self.channels.T
+        for order, joints in groups.items():
+            idx = np.array(joints)
+            if not order:
+                out[idx] = np.eye(3)
+                continue
+            cols = np.array([self.layout[j].columns("rotation") for j in joints])  # (k, m)
+            angles = np.radians(columns[cols.T])  # (m, k, n)
+            out[idx] = compose_cos_sin([AXIS_INDEX[a] for a in order], np.cos(angles), np.sin(angles))
+        return out
+
+    # -------------------------------------------------------------------------------------- arms
+    def arm_points(self, side: str, *, names: tuple[str, str, str] | None = None) -> ArmChain:
+        """Shoulder, elbow and wrist of the ``"left"`` or ``"right"`` arm for every frame.
+
+        Detection by joint names (CMU, Mixamo, Collar/Shoulder/Elbow/Wrist,
+        Rigify, MakeHuman, any prefix), else by skeleton structure; see
+        :mod:`retarget.skeleton`.  ``names`` overrides detection with three
+        joint names (the wrist may be ``"<joint>/End Site"``).
+        Raises ``ValueError`` for a bad side and ``BvhError`` when no arm
+        chain (or more than one) is found.
+        """
+        found = skeleton.find_arm(
+            side,
+            joint_names=self.joint_names,
+            parents=self.parents,
+            offsets=self.offsets,
+            end_site_parents=tuple(e.parent for e in self.end_sites),
+            end_site_offsets=tuple(e.offset for e in self.end_sites),
+            names=names,
+            path=self.path,
+        )
+        pos = self.positions()
+        points = np.empty((self.n_frames, 3, 3))
+        points[:, 0] = pos[:, found.indices[0]]
+        points[:, 1] = pos[:, found.indices[1]]
+        if found.wrist_is_end_site:
+            points[:, 2] = self.end_site_positions()[:, found.indices[2]]
+        else:
+            points[:, 2] = pos[:, found.indices[2]]
+        return ArmChain(
+            side=found.side,
+            names=found.names,
+            indices=found.indices,
+            wrist_is_end_site=found.wrist_is_end_site,
+            points=_readonly(points),
+        )
+
+    # ---------------------------------------------------------------------------------- transforms
+    def scaled(self, factor: float) -> Motion:
+        """A copy with every length (OFFSETs, End Sites, position channels) multiplied by ``factor``."""
+        factor = float(factor)
+        if not (np.isfinite(factor) and factor > 0):
+            raise ValueError(f"Expected a positive finite scale factor, got {factor}")
+        channels = self.channels.copy()
+        for lay in self.layout:
+            channels[:, lay.columns("position")] *= factor
+        return Motion(
+            joint_names=self.joint_names,
+            parents=self.parents.copy(),
+            offsets=self.offsets * factor,
+            layout=self.layout,
+            end_sites=tuple(EndSite(e.parent, tuple(v * factor for v in e.offset)) for e in self.end_sites),
+            channels=channels,
+            frame_time=self.frame_time,
+            path=self.path,
+        )

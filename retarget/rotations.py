@@ -1,0 +1,142 @@
+"""Rotation matrices from Euler channels, vectorised over leading dimensions.
+
+Conventions (the BVH ones): angles in radians, right-handed, active rotations
+of column vectors.  An Euler order ``"ZXY"`` means the channels compose in the
+listed order as *intrinsic* rotations::
+
+    R = Rz(a0) @ Rx(a1) @ Ry(a2)
+
+which is what Blender, pybvh and bvhio read from a BVH ``CHANNELS`` line with
+``Zrotation Xrotation Yrotation``.  Any number of axes (including repeats)
+is accepted; an empty order gives the identity.
+
+Example::
+
+    >>> R = euler_to_matrix(np.radians([[30.0, 10.0, -5.0]]), "ZXY")   # (1, 3, 3)
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+AXIS_INDEX: dict[str, int] = {"X": 0, "Y": 1, "Z": 2}
+
+
+def _axis_index(axis: str | int) -> int:
+    if isinstance(axis, str) and axis.upper() in AXIS_INDEX:
+        return AXIS_INDEX[axis.upper()]
+    if isinstance(axis, int | np.integer) and not isinstance(axis, bool) and 0 <= int(axis) <= 2:
+        return int(axis)
+    raise ValueError(f"Expected an axis 'X', 'Y', 'Z' or 0, 1, 2, got {axis!r}")
+
+
+def axis_rotation(axis: str | int, angle: np.ndarray | float) -> np.ndarray:
+    """Rotation about one coordinate axis.
+
+    ``angle``: ``(...)`` radians.  Returns ``(..., 3, 3)`` float64.
+    """
+    a = _axis_index(axis)
+    theta = np.asarray(angle, dtype=np.float64)
+    c, s = np.cos(theta), np.sin(theta)
+    i, k = (a + 1) % 3, (a + 2) % 3
+    out = np.zeros(theta.shape + (3, 3))
+    out[..., a, a] = 1.0
+    out[..., i, i] = c
+    out[..., k, k] = c
+    out[..., i, k] = -s
+    out[..., k, i] = s
+    return out
+
+
+def euler_to_matrix(angles: np.ndarray | Sequence[float], order: str) -> np.ndarray:
+    """Compose intrinsic rotations in the listed ``order``.
+
+    ``angles``: ``(..., len(order))`` radians, one column per letter of
+    ``order`` (e.g. ``"ZXY"``).  Returns ``(..., 3, 3)`` float64 with
+    ``R = R[order[0]] @ R[order[1]] @ ...``.
+    """
+    a = np.asarray(angles, dtype=np.float64)
+    axes = [_axis_index(ch) for ch in order]
+    if a.ndim == 0 or a.shape[-1] != len(axes):
+        raise ValueError(f"Expected angles of shape (..., {len(axes)}) for order {order!r}, got {a.shape}")
+    cos, sin = np.cos(a), np.sin(a)
+    return compose_cos_sin(axes, [cos[..., m] for m in range(len(axes))], [sin[..., m] for m in range(len(axes))])
+
+
+def compose_cos_sin(axes: Sequence[int], cos: Sequence[np.ndarray], sin: Sequence[np.ndarray]) -> np.ndarray:
+    """``R = R_axes[0] @ R_axes[1] @ ...`` from precomputed cosines and sines.
+
+    ``cos[m]``, ``sin[m]``: ``(...)`` arrays of the m-th angle.  The product is
+    built entry by entry with the zeros and ones of the elementary matrices
+    folded away, so each entry costs a few elementwise operations instead of a
+    batched 3x3 matmul.  Returns ``(..., 3, 3)``.
+    """
+    if not axes:
+        shape = np.shape(cos[0]) if len(cos) else ()
+        return np.broadcast_to(np.eye(3), tuple(shape) + (3, 3)).copy()
+    # A symbolic 3x3 matrix: entries are None (0), 1.0 (one), or arrays.
+    mat = _elementary(axes[0], cos[0], sin[0])
+    for m in range(1, len(axes)):
+        mat = _symbolic_matmul(mat, _elementary(axes[m], cos[m], sin[m]))
+    shape = np.shape(cos[0])
+    out = np.empty(tuple(shape) + (3, 3))
+    for i in range(3):
+        for k in range(3):
+            entry = mat[i][k]
+            out[..., i, k] = 0.0 if entry is None else entry
+    return out
+
+
+def _elementary(a: int, c: np.ndarray, s: np.ndarray) -> list[list]:
+    i, k = (a + 1) % 3, (a + 2) % 3
+    m: list[list] = [[None] * 3 for _ in range(3)]
+    m[a][a] = 1.0
+    m[i][i] = c
+    m[k][k] = c
+    m[i][k] = -s
+    m[k][i] = s
+    return m
+
+
+def _mul(x, y):
+    if x is None or y is None:
+        return None
+    if isinstance(x, float) and x == 1.0:
+        return y
+    if isinstance(y, float) and y == 1.0:
+        return x
+    return x * y
+
+
+def _add(x, y):
+    if x is None:
+        return y
+    if y is None:
+        return x
+    return x + y
+
+
+def _symbolic_matmul(p: list[list], q: list[list]) -> list[list]:
+    return [
+        [_add(_add(_mul(p[i][0], q[0][k]), _mul(p[i][1], q[1][k])), _mul(p[i][2], q[2][k])) for k in range(3)]
+        for i in range(3)
+    ]
+
+
+def matrix_to_rotvec(matrix: np.ndarray) -> np.ndarray:
+    """Rotation vector (axis * angle, radians) of ``(..., 3, 3)`` rotation matrices; ``(..., 3)``.
+
+    Handy to compare rotations by their angle; accurate away from 180 degrees.
+    """
+    m = np.asarray(matrix, dtype=np.float64)
+    if m.shape[-2:] != (3, 3):
+        raise ValueError(f"Expected matrices of shape (..., 3, 3), got {m.shape}")
+    cos = np.clip((np.trace(m, axis1=-2, axis2=-1) - 1.0) / 2.0, -1.0, 1.0)
+    angle = np.arccos(cos)
+    v = np.stack([m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0], m[..., 1, 0] - m[..., 0, 1]], axis=-1)
+    sin = np.sin(angle)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        scale = np.where(sin > 1e-12, angle / (2.0 * sin), 0.5)
+    return v * scale[..., None]
