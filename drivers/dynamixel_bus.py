@@ -159,7 +159,7 @@ class DynamixelBus:
         step_limit: bool = True,
         rest_speed: float = 0.5,
         rest_timeout: float = 10.0,
-        rest_tolerance: float = 0.05,
+        rest_tolerance: float = 0.02,
         recover: bool = False,
         fast_read: bool | None = None,
         check_latency: bool = True,
@@ -206,6 +206,7 @@ class DynamixelBus:
         )  # fmt: skip
         js = self._joint_servos
         self._servo_joint = np.array([s.joint for s in js])
+        self._position_requests = {s.id: (s.model.register("Present Position").address, 4) for s in js}
         self._servo_offset = np.array([s.offset for s in js], dtype=np.int64)
         self._servo_min = np.array([s.min_tick for s in js], dtype=np.int64)
         self._servo_max = np.array([s.max_tick for s in js], dtype=np.int64)
@@ -293,12 +294,17 @@ class DynamixelBus:
         if link is None:
             return
         link.release()  # a Ctrl-C inside the SDK leaves the port marked busy
+        interrupted: KeyboardInterrupt | None = None
         try:
             if self._torque and self.shutdown_mode is ShutdownMode.REST:
                 try:
                     self._move_to_rest()
                 except (BusError, OSError) as exc:
                     log.error("could not move %s to its rest pose: %s", self.arm.name, exc)
+                except KeyboardInterrupt as exc:  # a second Ctrl-C cuts the rest move short, never the torque off
+                    log.warning("rest move interrupted: torque off now")
+                    link.release()
+                    interrupted = exc
             if self.shutdown_mode is not ShutdownMode.HOLD:
                 self._torque_off_all()
         finally:
@@ -307,6 +313,8 @@ class DynamixelBus:
             self._torque = False
             self._last_goal = None
             log.info("closed %s (%s)", self.port_name, self.shutdown_mode.value)
+        if interrupted is not None:
+            raise interrupted
 
     def status(self) -> BusStatus:
         link = self._link
@@ -412,9 +420,8 @@ class DynamixelBus:
 
     def _read_joint_ticks(self, *, check_active: bool = True) -> np.ndarray:
         link = self._require_active() if check_active else self.link
-        requests = {s.id: (s.model.register("Present Position").address, 4) for s in self._joint_servos}
         try:
-            replies = link.group_read(requests, fast=self._use_fast, what="Present Position")
+            replies = link.group_read(self._position_requests, fast=self._use_fast, what="Present Position")
         except BusError as exc:
             self._faulted = str(exc)
             raise
@@ -436,6 +443,7 @@ class DynamixelBus:
             bits = link.read_register(dxl_id, s.model.register("Hardware Error Status"))
             found[dxl_id] = hardware_error_names(bits) or ("unknown alert",)
         self._hardware_errors.update(found)
+        link.alerts.clear()  # reading Hardware Error Status set them again
         detail = "; ".join(f"servo {i}: {', '.join(names)}" for i, names in found.items())
         if self.recover:
             log.warning("hardware error (%s): rebooting and configuring again", detail)

@@ -1,0 +1,107 @@
+"""Driver overhead: one control tick (write goals + read positions) through DynamixelBus vs raw dynamixel-sdk.
+
+Both sides talk to the same in-process simulated WidowX-250 6DOF (``sim://wx250s``: 6 joints, 8 joint servos
+with the two shadows) through the same port class, so the difference is the driver's own Python work:
+clamping, step limiting, encoding, per-ID status collection and decoding.
+
+    raw:    GroupSyncWrite.changeParam x8 + txPacket, then GroupSyncRead.fastSyncRead (or txRxPacket) + getData x8
+    driver: DynamixelBus.write_goals(q) then DynamixelBus.read_positions()
+
+Run: ``python bench/bench_driver.py [--ticks N]``.  Prints median and p95 per tick and the overhead ratio,
+checked against TARGET_RATIO.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import numpy as np
+from dynamixel_sdk import COMM_SUCCESS, GroupSyncRead, GroupSyncWrite, PacketHandler
+
+from drivers.dynamixel_bus import DynamixelBus
+from drivers.port import open_port
+from retarget.arm_config import load_arm
+from retarget.bus import ShutdownMode
+
+TARGET_RATIO = 1.5  #: the driver may cost at most this many times the raw SDK calls per tick
+URL = "sim://wx250s"
+
+
+def _stats(samples: list[float]) -> tuple[float, float]:
+    ordered = sorted(samples)
+    return statistics.median(ordered), ordered[int(0.95 * (len(ordered) - 1))]
+
+
+def bench_raw(arm, ticks: int, *, fast: bool) -> list[float]:
+    ids = [s.id for j in arm.joints for s in j.servos]
+    port = open_port(URL, arm.baud)
+    ph = PacketHandler(2.0)
+    try:
+        for i in ids:  # torque on, or the goals go nowhere
+            ph.write1ByteTxRx(port, i, 64, 1)
+        writer = GroupSyncWrite(port, ph, 116, 4)
+        reader = GroupSyncRead(port, ph, 132, 4)
+        for i in ids:
+            writer.addParam(i, [0, 8, 0, 0])
+            reader.addParam(i)
+        times = []
+        rng = np.random.default_rng(0)
+        for _ in range(ticks):
+            goal = 2048 + rng.integers(-200, 200, size=len(ids))
+            t0 = time.perf_counter()
+            for i, g in zip(ids, goal, strict=True):
+                writer.changeParam(i, list(int(g).to_bytes(4, "little", signed=True)))
+            writer.txPacket()
+            result = reader.fastSyncRead() if fast else reader.txRxPacket()
+            if result != COMM_SUCCESS:
+                raise RuntimeError(ph.getTxRxResult(result))
+            _ = [reader.getData(i, 132, 4) for i in ids]
+            times.append(time.perf_counter() - t0)
+        for i in ids:
+            ph.write1ByteTxRx(port, i, 64, 0)
+        return times
+    finally:
+        port.closePort()
+
+
+def bench_driver(arm, ticks: int, *, fast: bool) -> list[float]:
+    bus = DynamixelBus(arm, URL, shutdown=ShutdownMode.OFF, fast_read=fast, check_latency=False)
+    times = []
+    rng = np.random.default_rng(0)
+    with bus:
+        for _ in range(ticks):
+            q = rng.uniform(-0.3, 0.3, size=arm.n_joints)
+            t0 = time.perf_counter()
+            bus.write_goals(q)
+            bus.read_positions()
+            times.append(time.perf_counter() - t0)
+    return times
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--ticks", type=int, default=2000)
+    args = parser.parse_args()
+    arm = load_arm("wx250s")
+    n_servos = sum(len(j.servos) for j in arm.joints)
+    print(f"{arm.name}: {arm.n_joints} joints, {n_servos} joint servos, {args.ticks} ticks, in-process {URL}")
+    worst = 0.0
+    for fast in (True, False):
+        label = "FAST_SYNC_READ" if fast else "SYNC_READ"
+        bench_raw(arm, 200, fast=fast)  # warm up
+        bench_driver(arm, 200, fast=fast)
+        raw_med, raw_p95 = _stats(bench_raw(arm, args.ticks, fast=fast))
+        drv_med, drv_p95 = _stats(bench_driver(arm, args.ticks, fast=fast))
+        ratio = drv_med / raw_med
+        worst = max(worst, ratio)
+        print(f"  {label:<15} raw sdk  median {raw_med * 1e6:7.1f} us  p95 {raw_p95 * 1e6:7.1f} us")
+        print(f"  {label:<15} driver   median {drv_med * 1e6:7.1f} us  p95 {drv_p95 * 1e6:7.1f} us  ratio {ratio:.2f}")
+    verdict = "ok" if worst <= TARGET_RATIO else "OVER TARGET"
+    print(f"overhead ratio (driver / raw, median per tick): worst {worst:.2f}, target <= {TARGET_RATIO}: {verdict}")
+    return 0 if worst <= TARGET_RATIO else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
