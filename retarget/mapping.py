@@ -351,8 +351,9 @@ class Workspace:
     def clamp(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Pull ``points`` ``(..., 3)`` metres to the nearest point of the workspace.
 
-        Returns ``(clamped (..., 3), moved (...) bool)``.  Radial first, then up to
-        the floor keeping the horizontal direction from the center.
+        Returns ``(clamped (..., 3), moved (...) bool)``.  Radially onto the shell;
+        a point that would end below the floor goes onto the floor instead, straight
+        above the original point, pulled into the ring the shell cuts out of the floor.
         """
         p = np.array(points, dtype=np.float64)
         if p.shape[-1:] != (3,):
@@ -365,19 +366,18 @@ class Workspace:
         fwd[0] = 1.0
         d = np.where((r > 1e-12)[..., None], d / safe[..., None], fwd) * radius[..., None]
         low = d[..., 2] + self.center[2] < self.floor
-        if np.any(low):
+        if np.any(low):  # onto the floor, below the original point, inside the annulus the shell cuts out of it
             dz = self.floor - self.center[2]
-            h = d[..., :2]
+            h = p[..., :2] - self.center[:2]
             hn = np.linalg.norm(h, axis=-1)
             hdir = np.where((hn > 1e-12)[..., None], h / np.where(hn > 1e-12, hn, 1.0)[..., None], fwd[:2])
             lo = math.sqrt(max(self.r_min**2 - dz**2, 0.0))
             hi = math.sqrt(max(self.r_max**2 - dz**2, 0.0))
             hn2 = np.clip(hn, lo, hi)
-            d[..., :2] = np.where(low[..., None], hdir * hn2[..., None], h)
+            d[..., :2] = np.where(low[..., None], hdir * hn2[..., None], d[..., :2])
             d[..., 2] = np.where(low, dz, d[..., 2])
-        out = d + self.center
-        moved = np.linalg.norm(out - p, axis=-1) > 1e-9
-        return out, moved
+        moved = (r < self.r_min) | (r > self.r_max) | low
+        return np.where(moved[..., None], d + self.center, p), moved
 
 
 # ----------------------------------------------------------------------------------------------- the mapping
