@@ -22,7 +22,7 @@ from collections.abc import Sequence
 from retarget.errors import BusError, RetargetError
 
 #: Subcommands in the order ``--help`` lists them.
-COMMANDS: tuple[str, ...] = ("replay", "export", "inspect", "scan")
+COMMANDS: tuple[str, ...] = ("replay", "export", "inspect", "scan", "sim")
 
 EXIT_OK = 0
 EXIT_USAGE = 2  #: bad input: a file, a config key, an option value
@@ -37,6 +37,7 @@ examples:
   retarget inspect clip.bvh            show the skeleton, frame rate and arm chains
   retarget inspect clip.bvh --json     the same as JSON on stdout
   retarget scan --port /dev/ttyUSB0    list the servos on a port: ID, model, firmware, baud
+  retarget sim --tcp 127.0.0.1:4000    simulated servos of wx250s on loopback TCP (or a pty by default)
 
 run 'retarget COMMAND --help' for each command's own examples.
 """
