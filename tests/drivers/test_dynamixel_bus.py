@@ -1,0 +1,383 @@
+"""DynamixelBus against the simulated wx250s: registers read back from the simulated servos, not from the driver."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import sim
+from drivers import units
+from drivers.control_table import EEPROM_END, HardwareError, Instruction
+from drivers.dynamixel_bus import DynamixelBus, Profile, plan_servos
+from retarget.bus import Bus, ShutdownMode
+from retarget.errors import BusError, ConfigError
+
+GOAL = 116
+
+
+def goal_writes(sim_bus: sim.SimBus) -> list[dict[int, int]]:
+    """Every Goal Position SYNC_WRITE the simulated wire carried, decoded: [{id: ticks}, ...]."""
+    out = []
+    for entry in sim_bus.log:
+        p = entry.params
+        if entry.instruction != Instruction.SYNC_WRITE or int.from_bytes(p[0:2], "little") != GOAL:
+            continue
+        size = int.from_bytes(p[2:4], "little")
+        body = p[4:]
+        out.append(
+            {
+                body[k]: int.from_bytes(body[k + 1 : k + 1 + size], "little", signed=True)
+                for k in range(0, len(body), size + 1)
+            }
+        )
+    return out
+
+
+def torques(sim_bus: sim.SimBus) -> dict[int, int]:
+    return {s.id: s.get("Torque Enable") for s in sim_bus.servos}
+
+
+def expected_limits(lower: float, upper: float, offset: int = 0) -> tuple[int, int]:
+    lo = math.ceil(2048 + offset + lower / units.RAD_PER_TICK - 1e-6)
+    hi = math.floor(2048 + offset + upper / units.RAD_PER_TICK + 1e-6)
+    return max(lo, 0), min(hi, 4095)
+
+
+# ---------------------------------------------------------------------------------------------- connect
+
+
+def test_implements_the_bus_protocol(make_bus, url):
+    assert isinstance(make_bus(url), Bus)
+
+
+def test_connect_configures_every_servo_then_enables_torque(make_bus, transport_url, sim_bus, arm):
+    bus = make_bus(transport_url, shutdown=ShutdownMode.HOLD)
+    bus.connect()
+    for j, joint in enumerate(arm.joints):
+        for s in joint.servos:
+            servo = sim_bus.servo(s.id)
+            lo, hi = expected_limits(joint.lower, joint.upper, s.offset)
+            assert servo.get("Operating Mode") == 3, s.id
+            assert servo.get("Drive Mode") == (1 if s.direction < 0 else 0), s.id
+            assert (servo.get("Min Position Limit"), servo.get("Max Position Limit")) == (lo, hi), s.id
+            assert servo.get("Velocity Limit") == 131, s.id  # pi rad/s, as Interbotix configures it
+            assert servo.get("Profile Velocity") == 131, s.id
+            assert servo.get("Return Delay Time") == 0, s.id  # factory 250
+            assert servo.get("Homing Offset") == 0, s.id
+            assert servo.get("Torque Enable") == 1, s.id
+            assert lo <= servo.get("Goal Position") <= hi, (s.id, j)
+    gripper = sim_bus.servo(arm.gripper.servo.id)
+    assert (gripper.get("Min Position Limit"), gripper.get("Max Position Limit")) == expected_limits(
+        arm.gripper.lower, arm.gripper.upper
+    )
+    assert gripper.get("Torque Enable") == 1
+    # enabling torque did not move anything: every joint still reads its starting (rest) pose
+    np.testing.assert_allclose(bus.read_positions(), arm.rest, atol=units.RAD_PER_TICK)
+
+
+def test_eeprom_is_written_only_when_it_differs(make_bus, url, sim_bus):
+    make_bus(url, shutdown=ShutdownMode.HOLD).connect()
+    make_bus(url, shutdown=ShutdownMode.OFF).close()  # nothing: never connected
+    for servo in sim_bus.servos:
+        servo.writes.clear()
+    second = make_bus(url, shutdown=ShutdownMode.HOLD)
+    second.connect()  # servos already configured and torque on: no EEPROM write, no torque off
+    for servo in sim_bus.servos:
+        eeprom = [(address, data) for _, address, data in servo.writes if address < EEPROM_END]
+        assert eeprom == [], servo.id
+        assert servo.get("Torque Enable") == 1
+
+
+def test_time_based_profile_sets_drive_mode_bit2(make_bus, url, sim_bus):
+    make_bus(url, profile=Profile.TIME, dt=0.02).connect()
+    shoulder, shadow = sim_bus.servo(2), sim_bus.servo(3)
+    assert (shoulder.get("Drive Mode"), shadow.get("Drive Mode")) == (4, 5)
+    assert shoulder.get("Profile Velocity") == 20  # ms: one tick
+    assert shoulder.get("Profile Acceleration") == 5
+
+
+def test_wrong_models_fail_before_any_torque(make_bus, arm, clock):
+    wrong = sim.SimBus.from_ids(range(1, 10), "XL430-W250", clock=clock)  # the arm wants XM430-W350 on 1..7
+    url = sim.register("drivers-wrong-models", wrong)
+    try:
+        bus = make_bus(url)
+        with pytest.raises(BusError, match=r"servo 1 is model 1060, the arm expects XM430-W350 \(1020\)") as info:
+            bus.connect()
+        assert info.value.ids == (1, 2, 3, 4, 5, 6, 7)
+        assert "\n" not in str(info.value)
+        assert set(torques(wrong).values()) == {0}
+        assert all(s.writes == [] for s in wrong.servos)  # nothing was written at all
+        assert not bus.connected
+    finally:
+        sim.unregister("drivers-wrong-models")
+
+
+def test_missing_servos_are_named_with_a_hint(make_bus, arm, clock):
+    partial = sim.SimBus.from_arm(arm, clock=clock)
+    partial.servo(4).unplug()
+    partial.servo(5).unplug()
+    url = sim.register("drivers-missing", partial)
+    try:
+        bus = make_bus(url, retries=0)
+        with pytest.raises(BusError, match=r"no status packet from servo 4, 5 at 1000000 baud.*check the baud rate"):
+            bus.connect()
+        assert set(torques(partial).values()) == {0}
+        assert not bus.connected
+    finally:
+        sim.unregister("drivers-missing")
+
+
+def test_wrong_baud_names_every_servo(make_bus, url, arm):
+    bus = make_bus(url, baud=57600, retries=0)
+    with pytest.raises(BusError, match=r"no status packet from servo 1, 2, 3, 4, 5, 6, 7, 8, 9 at 57600 baud"):
+        bus.connect()
+
+
+def test_unknown_port_is_a_bus_error(make_bus):
+    with pytest.raises(BusError, match=r"cannot open port '/dev/does-not-exist'"):
+        make_bus("/dev/does-not-exist").connect()
+
+
+# ---------------------------------------------------------------------------------------------- goals
+
+
+def test_goals_round_trip_through_the_servos_seeded(make_bus, url, sim_bus, arm, clock):
+    bus = make_bus(url, shutdown=ShutdownMode.OFF)
+    bus.connect()
+    rng = np.random.default_rng(42)
+    for _ in range(5):
+        q = rng.uniform(bus.lower, bus.upper)
+        bus.write_goals(q)
+        clock.advance(5.0)  # long enough for any move at pi rad/s
+        np.testing.assert_allclose(bus.read_positions(), q, atol=units.RAD_PER_TICK / 2 + 1e-9)
+
+
+def test_shadows_are_mirrored_in_the_same_sync_write(make_bus, url, sim_bus, clock):
+    bus = make_bus(url, shutdown=ShutdownMode.OFF)
+    bus.connect()
+    q = np.array([0.3, 0.5, -0.7, 0.2, 0.4, -0.1])
+    bus.write_goals(q)
+    last = goal_writes(sim_bus)[-1]
+    assert sorted(last) == [1, 2, 3, 4, 5, 6, 7, 8]  # shadows 3 and 5 in the same packet
+    assert last[2] == last[3] == units.rad_to_ticks(0.5) and last[4] == last[5] == units.rad_to_ticks(-0.7)
+    clock.advance(5.0)
+    for primary, shadow in ((2, 3), (4, 5)):
+        p, s = sim_bus.servo(primary), sim_bus.servo(shadow)
+        assert s.get("Drive Mode") & 1 == 1 and p.get("Drive Mode") & 1 == 0
+        assert s.get("Present Position") == p.get("Present Position")  # the shaft turned the other way
+
+
+@pytest.mark.parametrize("scale", [1.5, 10.0, -10.0], ids=["just-over", "far-over", "far-under"])
+def test_limits_are_clamped_before_the_wire(make_bus, url, sim_bus, arm, scale):
+    bus = make_bus(url, shutdown=ShutdownMode.OFF)
+    bus.connect()
+    q = np.where(scale > 0, arm.upper, arm.lower) * abs(scale) + np.sign(scale) * 1.0
+    bus.write_goals(q)
+    plans = {p.id: p for p in plan_servos(arm)}
+    writes = goal_writes(sim_bus)
+    assert writes
+    for packet in writes:
+        for dxl_id, ticks in packet.items():
+            assert plans[dxl_id].min_tick <= ticks <= plans[dxl_id].max_tick, (dxl_id, ticks)
+    for servo in sim_bus.servos:
+        assert servo.get("Min Position Limit") <= servo.get("Goal Position") <= servo.get("Max Position Limit")
+
+
+def test_step_limit_from_max_velocity(make_bus, url, sim_bus, arm):
+    dt = 0.02
+    bus = make_bus(url, dt=dt, shutdown=ShutdownMode.OFF)
+    bus.connect()
+    start = bus.read_positions()
+    bus.write_goals(start + 1.0)  # one radian on every joint, in one tick
+    first = goal_writes(sim_bus)[-1]
+    max_ticks = arm.max_velocity[0] * dt / units.RAD_PER_TICK
+    for joint_index, dxl_id in enumerate((1, 2, 4, 6, 7, 8)):
+        before = units.rad_to_ticks(start[joint_index])
+        assert abs(first[dxl_id] - before) <= math.ceil(max_ticks), dxl_id
+    bus.write_goals(start + 1.0)  # the next tick takes the next step
+    assert goal_writes(sim_bus)[-1][1] > first[1]
+
+
+@pytest.mark.parametrize(
+    ("q", "message"),
+    [
+        (np.zeros(5), r"Expected goals of shape \(6,\) in radians, got shape \(5,\)"),
+        (np.array([0, 0, math.nan, 0, 0, 0]), r"Expected finite goals"),
+    ],
+    ids=["shape", "nan"],
+)
+def test_bad_goals_are_refused(make_bus, url, q, message):
+    bus = make_bus(url, shutdown=ShutdownMode.OFF)
+    bus.connect()
+    with pytest.raises(ValueError, match=message):
+        bus.write_goals(q)
+
+
+def test_torque_on_again_does_not_jump(make_bus, url, sim_bus, clock):
+    bus = make_bus(url, shutdown=ShutdownMode.OFF)
+    bus.connect()
+    bus.set_torque(False)
+    sim_bus.servo(1).set_position(2500)  # pushed by hand while limp
+    bus.set_torque(True)
+    assert sim_bus.servo(1).get("Goal Position") == 2500
+    assert torques(sim_bus)[1] == 1
+
+
+def test_gripper_is_clamped_and_read_back(make_bus, url, sim_bus, arm, clock):
+    bus = make_bus(url, shutdown=ShutdownMode.OFF)
+    bus.connect()
+    bus.write_gripper(10.0)
+    clock.advance(5.0)
+    assert bus.read_gripper() == pytest.approx(arm.gripper.upper, abs=units.RAD_PER_TICK)
+    assert sim_bus.servo(9).get("Goal Position") == sim_bus.servo(9).get("Max Position Limit")
+
+
+# ---------------------------------------------------------------------------------------------- faults
+
+
+def test_dropped_replies_are_retried(make_bus, arm, clock):
+    lossy = sim.SimBus.from_arm(arm, clock=clock, faults=sim.Faults(bus=sim.ReplyFaults(drop=0.05), seed=3))
+    url = sim.register("drivers-lossy", lossy)
+    try:
+        bus = make_bus(url, retries=6, shutdown=ShutdownMode.OFF)
+        bus.connect()
+        for _ in range(15):
+            bus.write_goals(np.zeros(6))
+            clock.advance(0.02)
+            assert bus.read_positions().shape == (6,)
+        status = bus.status()
+        assert status.retries > 0 and status.errors == 0 and status.ticks == 15
+    finally:
+        sim.unregister("drivers-lossy")
+
+
+@pytest.mark.parametrize("fast_read", [True, False], ids=["fast-sync-read", "sync-read"])
+def test_unplugged_servo_raises_naming_it(make_bus, url, sim_bus, fast_read):
+    bus = make_bus(url, retries=1, fast_read=fast_read, shutdown=ShutdownMode.OFF)
+    bus.connect()
+    sim_bus.servo(5).unplug()
+    with pytest.raises(BusError, match=r"^servo 5: no status packet \(Present Position\) at 1000000 baud") as info:
+        bus.read_positions()
+    assert info.value.ids == (5,)
+    assert bus.status().errors == 1
+    with pytest.raises(BusError, match="faulted"):  # no more goals after an unrecoverable fault
+        bus.write_goals(np.zeros(6))
+    with pytest.raises(BusError, match=r"^servo 5: could not turn torque off$"):  # the others did
+        bus.close()
+    assert not bus.connected
+    assert {i: t for i, t in torques(sim_bus).items() if i != 5} == dict.fromkeys((1, 2, 3, 4, 6, 7, 8, 9), 0)
+
+
+def test_hardware_error_is_reported_by_name(make_bus, url, sim_bus):
+    bus = make_bus(url, shutdown=ShutdownMode.OFF)
+    bus.connect()
+    sim_bus.servo(4).trigger_hardware_error(HardwareError.OVERLOAD | HardwareError.OVERHEATING)
+    with pytest.raises(BusError, match=r"servo 4: overheating, overload.*power-cycle it or reboot it") as info:
+        bus.read_positions()
+    assert info.value.ids == (4,)
+    assert bus.status().hardware_errors == {4: ("overheating", "overload")}
+    with pytest.raises(BusError, match="faulted"):
+        bus.write_goals(np.zeros(6))
+
+
+def test_recover_reboots_and_configures_again(make_bus, url, sim_bus, clock):
+    bus = make_bus(url, recover=True, shutdown=ShutdownMode.OFF)
+    bus.connect()
+    servo = sim_bus.servo(6)
+    servo.trigger_hardware_error(HardwareError.OVERLOAD)
+    assert servo.get("Torque Enable") == 0  # the servo shut itself down
+    q = bus.read_positions()  # rebooted, configured, torque back on
+    assert q.shape == (6,)
+    assert servo.get("Hardware Error Status") == 0 and servo.get("Torque Enable") == 1
+    assert servo.get("Return Delay Time") == 0 and servo.get("Velocity Limit") == 131
+    assert bus.status().hardware_errors == {}
+
+
+# ---------------------------------------------------------------------------------------------- shutdown
+
+
+def test_close_rest_moves_to_rest_then_torque_off(make_bus, url, sim_bus, arm, clock):
+    bus = make_bus(url, shutdown=ShutdownMode.REST)
+    bus.connect()
+    for _ in range(200):  # stream the arm to home, 4 s at 50 Hz
+        bus.write_goals(arm.home)
+        clock.advance(0.02)
+    np.testing.assert_allclose(bus.read_positions(), arm.home, atol=0.002)
+    t0 = clock.now()
+    bus.close()
+    assert clock.now() - t0 > 1.0  # it waited (on the bus clock) for the slow move
+    assert set(torques(sim_bus).values()) == {0}
+    # with torque off nothing moves: the present position is where the servos were when torque went off
+    for joint, rest in zip(arm.joints, arm.rest, strict=True):
+        for s in joint.servos:
+            present = units.ticks_to_rad(sim_bus.servo(s.id).get("Present Position"))
+            assert present == pytest.approx(rest, abs=bus.rest_tolerance + units.RAD_PER_TICK), s.id
+    # the move ran at the safe speed: Profile Velocity was lowered for it
+    assert sim_bus.servo(2).get("Profile Velocity") == units.rad_s_to_velocity_units(bus.rest_speed)
+
+
+@pytest.mark.parametrize(("mode", "torque"), [(ShutdownMode.OFF, 0), (ShutdownMode.HOLD, 1)], ids=["off", "hold"])
+def test_close_off_and_hold(make_bus, url, sim_bus, mode, torque):
+    bus = make_bus(url, shutdown=mode)
+    bus.connect()
+    bus.write_goals(np.zeros(6))
+    before = len(goal_writes(sim_bus))
+    bus.close()
+    assert len(goal_writes(sim_bus)) == before  # no goal after close began
+    assert set(torques(sim_bus).values()) == {torque}
+
+
+def test_context_manager_runs_the_shutdown(make_bus, url, sim_bus):
+    with make_bus(url, shutdown="off") as bus:
+        assert bus.connected and set(torques(sim_bus).values()) == {1}
+    assert not bus.connected and set(torques(sim_bus).values()) == {0}
+
+
+def test_ctrl_c_still_turns_torque_off(make_bus, url, sim_bus):
+    bus = make_bus(url, shutdown=ShutdownMode.OFF)
+    with pytest.raises(KeyboardInterrupt), bus:
+        bus.link.port.is_using = True  # as if Ctrl-C hit inside an SDK transaction
+        raise KeyboardInterrupt
+    assert set(torques(sim_bus).values()) == {0}
+
+
+def test_closed_bus_refuses_calls(make_bus, url):
+    bus = make_bus(url, shutdown=ShutdownMode.OFF)
+    for call in (bus.read_positions, lambda: bus.write_goals(np.zeros(6)), lambda: bus.set_torque(True)):
+        with pytest.raises(BusError, match="not connected"):
+            call()
+    bus.connect()
+    bus.close()
+    bus.close()  # idempotent
+    with pytest.raises(BusError, match="not connected"):
+        bus.read_positions()
+    assert bus.status().connected is False
+
+
+# ---------------------------------------------------------------------------------------------- options
+
+
+@pytest.mark.parametrize(
+    ("options", "error", "message"),
+    [
+        ({"retries": -1}, ValueError, "Expected retries >= 0"),
+        ({"return_delay_us": 600}, ValueError, r"Expected return_delay_us in 0\.\.508"),
+        ({"dt": 0.0}, ValueError, "Expected dt > 0"),
+        ({"shutdown": "sleep"}, ValueError, "'sleep' is not a valid ShutdownMode"),
+    ],
+    ids=["retries", "return-delay", "dt", "shutdown"],
+)
+def test_bad_options(arm, options, error, message):
+    with pytest.raises(error, match=message):
+        DynamixelBus(arm, "sim://wx250s", **options)
+
+
+def test_unknown_servo_model_is_a_config_error(arm):
+    import dataclasses
+
+    joint = dataclasses.replace(arm.joints[0], servos=(dataclasses.replace(arm.joints[0].servos[0], model="AX-12A"),))
+    bad = dataclasses.replace(arm, joints=(joint, *arm.joints[1:]))
+    with pytest.raises(ConfigError, match=r"joints\[0\]\.servos\[0\]\.model"):
+        DynamixelBus(bad, "sim://wx250s")
