@@ -60,7 +60,7 @@ def add_clip_arguments(parser: argparse.ArgumentParser) -> None:
 def add_mapping_arguments(parser: argparse.ArgumentParser) -> None:
     """Flags overriding the arm file's ``[mapping]`` table (see ``retarget.mapping``)."""
     g = parser.add_argument_group("mapping (overrides the arm file's [mapping] table)")
-    g.add_argument("--side", choices=("left", "right"), default=None, help="which human arm drives the robot")
+    g.add_argument("--side", default=None, metavar="left|right", help="which human arm drives the robot")
     g.add_argument(
         "--forward",
         default=None,
@@ -188,8 +188,8 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--dry-run", action="store_true", help="solve every tick without any bus")
     parser.add_argument(
         "--shutdown",
-        choices=("hold", "rest", "off"),
         default="rest",
+        metavar="hold|rest|off",
         help="on exit/Ctrl-C: hold the last goal, move to rest then torque off (default), or torque off",
     )
     parser.add_argument("--telemetry", default=None, metavar="CSV", help="write one CSV row per tick ('-' = stdout)")
@@ -300,6 +300,8 @@ def run(args: argparse.Namespace) -> int:
     from retarget.control import ControlLoop
     from retarget.telemetry import TelemetryWriter
 
+    if args.shutdown not in ("hold", "rest", "off"):
+        raise ConfigError("Expected hold, rest or off", key="--shutdown", value=args.shutdown)
     if args.fast and not is_sim_port(args.port):
         raise ConfigError("--fast needs the simulated bus (a sim:// port or none), not a real port", key="--port",
                           value=args.port)  # fmt: skip
