@@ -66,6 +66,7 @@ class ArmChain:
     ``names``: the joints used; an End Site wrist is named ``"forearm.L/End Site"``.
     ``indices``: joint indices of shoulder and elbow, and of the wrist joint
     (or, when ``wrist_is_end_site``, the index into ``Motion.end_sites``).
+    ``bone_lengths``: median upper-arm and forearm lengths.
     """
 
     side: str
@@ -73,6 +74,7 @@ class ArmChain:
     indices: tuple[int, int, int]
     wrist_is_end_site: bool
     points: np.ndarray = field(repr=False, compare=False)
+    method: str = "names"  #: how the joints were chosen: "names", "structure" or "explicit"
 
     @property
     def bone_lengths(self) -> tuple[float, float]:
@@ -186,6 +188,15 @@ class Motion:
         for j, p in enumerate(self.parents):
             out[j] = self.offsets[j] + (out[p] if p >= 0 else 0.0)
         return out
+
+    def rest_end_site_positions(self) -> np.ndarray:
+        """``(n_end_sites, 3)`` End Site positions from OFFSETs alone, file units."""
+        rest = self.rest_positions()
+        return np.array([rest[e.parent] + np.asarray(e.offset) for e in self.end_sites]).reshape(-1, 3)
+
+    def guess_units(self) -> skeleton.UnitsGuess:
+        """The length unit suggested by the rest-pose height (see :func:`retarget.skeleton.guess_units`)."""
+        return skeleton.guess_units(np.vstack([self.rest_positions(), self.rest_end_site_positions()]))
 
     def __repr__(self) -> str:
         src = f" {self.path.name!r}" if self.path else ""
@@ -315,6 +326,7 @@ class Motion:
             indices=found.indices,
             wrist_is_end_site=found.wrist_is_end_site,
             points=_readonly(points),
+            method=found.method,
         )
 
     # ---------------------------------------------------------------------------------- transforms

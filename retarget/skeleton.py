@@ -360,3 +360,43 @@ def _subtree_side(start: int, children: list[list[int]], joint_names: Sequence[s
     if votes["left"] == votes["right"]:
         return None
     return max(votes, key=votes.get)  # type: ignore[arg-type]
+
+
+# ------------------------------------------------------------------------------------------ units
+
+
+@dataclass(frozen=True)
+class UnitsGuess:
+    """What a skeleton's size suggests about its length unit.
+
+    ``unit`` is ``"m"``, ``"cm"``, ``"mm"``, ``"in"`` or ``"unknown"``;
+    ``height`` is the standing height in file units (rest pose extent along
+    ``up_axis``); ``metres_per_unit`` is the scale that makes the skeleton
+    1.7 m tall when the unit is unknown, else the unit's exact size.
+    """
+
+    unit: str
+    height: float
+    up_axis: str
+    metres_per_unit: float
+
+
+_UNITS = (("m", 1.0, 1.2, 2.3), ("cm", 0.01, 120.0, 230.0), ("mm", 0.001, 1200.0, 2300.0), ("in", 0.0254, 45.0, 90.0))
+
+
+def guess_units(rest_points: np.ndarray) -> UnitsGuess:
+    """Guess the unit from ``rest_points`` ``(n, 3)`` (joints and End Sites, rest pose, file units).
+
+    Up is Y (the BVH convention) unless the skeleton is much flatter along Y
+    than along Z.  A human of 1.2-2.3 m is assumed.
+    """
+    pts = np.asarray(rest_points, dtype=np.float64).reshape(-1, 3)
+    if pts.shape[0] == 0:
+        return UnitsGuess("unknown", 0.0, "Y", 1.0)
+    extent = pts.max(axis=0) - pts.min(axis=0)
+    up = 1 if extent[1] >= 0.5 * extent.max() or extent[1] >= extent[2] else 2
+    height = float(extent[up])
+    for unit, size, low, high in _UNITS:
+        if low <= height <= high:
+            return UnitsGuess(unit, height, "XYZ"[up], size)
+    return UnitsGuess("unknown", height, "XYZ"[up], 1.7 / height if height > 0 else 1.0)
