@@ -444,7 +444,10 @@ class DynamixelBus:
             found[dxl_id] = hardware_error_names(bits) or ("unknown alert",)
         self._hardware_errors.update(found)
         link.alerts.clear()  # reading Hardware Error Status set them again
-        detail = "; ".join(f"servo {i}: {', '.join(names)}" for i, names in found.items())
+        if len(found) == 1:  # BusError already starts with "servo N: "
+            detail = ", ".join(next(iter(found.values())))
+        else:
+            detail = "; ".join(f"{i}: {', '.join(names)}" for i, names in found.items())
         if self.recover:
             log.warning("hardware error (%s): rebooting and configuring again", detail)
             for dxl_id in ids:
@@ -454,7 +457,8 @@ class DynamixelBus:
         self._faulted = f"hardware error: {detail}"
         link.error_count += 1
         raise BusError(
-            f"hardware error: {detail}; the servo shut its torque off: power-cycle it or reboot it (recover=True)",
+            f"hardware error: {detail}; a servo shuts its torque off on these: power-cycle it or reboot it "
+            "(recover=True)",
             ids=ids,
         )
 

@@ -274,7 +274,8 @@ def test_hardware_error_is_reported_by_name(make_bus, url, sim_bus):
     bus = make_bus(url, shutdown=ShutdownMode.OFF)
     bus.connect()
     sim_bus.servo(4).trigger_hardware_error(HardwareError.OVERLOAD | HardwareError.OVERHEATING)
-    with pytest.raises(BusError, match=r"servo 4: overheating, overload.*power-cycle it or reboot it") as info:
+    expected = r"^servo 4: hardware error: overheating, overload; .*power-cycle it or reboot it"
+    with pytest.raises(BusError, match=expected) as info:
         bus.read_positions()
     assert info.value.ids == (4,)
     assert bus.status().hardware_errors == {4: ("overheating", "overload")}
@@ -381,3 +382,22 @@ def test_unknown_servo_model_is_a_config_error(arm):
     bad = dataclasses.replace(arm, joints=(joint, *arm.joints[1:]))
     with pytest.raises(ConfigError, match=r"joints\[0\]\.servos\[0\]\.model"):
         DynamixelBus(bad, "sim://wx250s")
+
+
+def test_fault_options_in_the_url_hardware_error_at_connect(arm):
+    """The simulator's own URL options (its own virtual clock): a servo already in overload fails connect."""
+    bus = DynamixelBus(arm, "sim://wx250s?clock=virtual&hwerror=7:overload@0", check_latency=False)
+    with pytest.raises(BusError, match=r"^servo 7: hardware error: overload; ") as info:
+        bus.connect()
+    assert info.value.ids == (7,)
+    assert not bus.connected
+
+
+def test_fault_options_in_the_url_dropped_replies(arm):
+    bus = DynamixelBus(
+        arm, "sim://wx250s?clock=virtual&drop=0.03&seed=11", retries=6, shutdown="off", check_latency=False
+    )
+    with bus:
+        for _ in range(10):
+            bus.read_positions()
+        assert bus.status().retries > 0 and bus.status().errors == 0

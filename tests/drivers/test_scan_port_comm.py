@@ -1,0 +1,176 @@
+"""drivers.port, drivers.comm and drivers.scan (and ``retarget scan``) against the simulator."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+import sim
+from drivers.comm import Link, comm_result_name, status_error_name
+from drivers.control_table import ALERT_BIT, HardwareError
+from drivers.port import UrlPortHandler, open_port
+from drivers.scan import ALL_BAUDS, parse_ids, scan
+from retarget.cli import main
+from retarget.errors import BusError, ConfigError
+
+# ---------------------------------------------------------------------------------------------- port
+
+
+def test_open_port_opens_a_sim_url(url):
+    port = open_port(url, 1_000_000)
+    try:
+        assert isinstance(port, UrlPortHandler) and port.is_open and port.getBaudRate() == 1_000_000
+    finally:
+        port.closePort()
+    assert not port.is_open
+
+
+@pytest.mark.parametrize(
+    ("port", "baud", "message"),
+    [
+        ("/dev/does-not-exist", 1_000_000, r"cannot open port '/dev/does-not-exist' at 1000000 baud"),
+        ("socket://127.0.0.1:1", 1_000_000, r"cannot open port 'socket://127.0.0.1:1'"),
+        ("sim://@nobody-registered-this", 1_000_000, r"cannot open port 'sim://@nobody-registered-this'"),
+        ("sim://wx250s", 4_500_000, r"baud rate 4500000 is not supported by dynamixel-sdk"),
+    ],
+    ids=["no-device", "tcp-refused", "sim-unknown", "baud"],
+)
+def test_open_failures_are_bus_errors(port, baud, message):
+    with pytest.raises(BusError, match=message):
+        open_port(port, baud)
+
+
+# ---------------------------------------------------------------------------------------------- comm
+
+
+@pytest.fixture
+def link(url):
+    port = open_port(url, 1_000_000)
+    yield Link(port, retries=1)
+    port.closePort()
+
+
+def test_status_error_names():
+    assert status_error_name(0) is None
+    assert status_error_name(ALERT_BIT) is None  # the Alert bit alone is not an error number
+    assert status_error_name(7) == "access error"
+    assert status_error_name(ALERT_BIT | 6) == "data limit error"
+    assert comm_result_name(-3001) == "no status packet"
+
+
+def test_ping_reports_model_and_firmware(link):
+    reply = link.ping(2)
+    assert (reply.id, reply.model_number, reply.firmware) == (2, 1020, 46)
+    assert link.ping(42) is None
+    assert link.retry_count == 1  # one retry for the absent ID
+
+
+def test_eeprom_write_with_torque_on_names_the_access_error(link, sim_bus):
+    sim_bus.servo(1).set("Torque Enable", 1)
+    reg = sim_bus.servo(1).model.register("Drive Mode")
+    with pytest.raises(BusError, match=r"^servo 1: access error writing Drive Mode = 1$"):
+        link.write_register(1, reg, 1)
+    assert link.retry_count == 0  # a refused value is not repeated
+
+
+def test_data_limit_error_is_named(link, sim_bus):
+    model = sim_bus.servo(1).model
+    link.write_register(1, model.register("Max Position Limit"), 3000)
+    with pytest.raises(BusError, match=r"servo 1: data limit error writing Goal Position = 3500"):
+        link.write_register(1, model.register("Goal Position"), 3500)
+
+
+def test_alert_bit_is_collected(link, sim_bus):
+    sim_bus.servo(3).trigger_hardware_error(HardwareError.INPUT_VOLTAGE)
+    link.read(3, 132, 4)
+    assert link.alerts == {3}
+
+
+def test_bulk_read_when_addresses_differ(link, sim_bus):
+    sim_bus.servo(1).set_position(1234)
+    replies = link.group_read({1: (132, 4), 2: (146, 1)}, what="mixed")
+    assert int.from_bytes(replies[1].data, "little") == 1234
+    assert replies[2].data[0] == sim_bus.servo(2).get("Present Temperature")
+
+
+@pytest.mark.parametrize("fast", [True, False], ids=["fast", "plain"])
+def test_group_read_names_the_silent_servo(link, sim_bus, fast):
+    sim_bus.servo(2).unplug()
+    with pytest.raises(BusError, match=r"^servo 2: no status packet \(Present Position\)") as info:
+        link.group_read({i: (132, 4) for i in (1, 2, 4)}, fast=fast, what="Present Position")
+    assert info.value.ids == (2,)
+    assert link.error_count == 1
+
+
+def test_retries_must_be_non_negative(link):
+    with pytest.raises(ValueError, match="Expected retries >= 0, got -1"):
+        Link(link.port, retries=-1)
+
+
+# ---------------------------------------------------------------------------------------------- scan
+
+
+@pytest.mark.parametrize(
+    ("text", "ids"),
+    [("1-3", (1, 2, 3)), ("5", (5,)), ("1,3,5-6", (1, 3, 5, 6)), ("0-252", tuple(range(253)))],
+    ids=["range", "one", "mixed", "all"],
+)
+def test_parse_ids(text, ids):
+    assert parse_ids(text) == ids
+
+
+@pytest.mark.parametrize("text", ["a-b", "5-1", "253", "-"], ids=["letters", "reversed", "too-high", "dash"])
+def test_parse_ids_rejects(text):
+    with pytest.raises(ConfigError, match=r"--ids"):
+        parse_ids(text)
+
+
+def test_all_bauds_start_with_the_common_ones():
+    assert ALL_BAUDS[:2] == (1_000_000, 57_600) and 4_500_000 not in ALL_BAUDS
+
+
+def test_scan_broadcast_finds_the_arm(url):
+    found = scan(url, (1_000_000,))
+    assert [s.id for s in found] == list(range(1, 10))
+    assert {s.model for s in found} == {"XM430-W350", "XL430-W250"}
+    assert {(s.firmware, s.baud) for s in found} == {(46, 1_000_000)}
+
+
+def test_scan_per_id_across_bauds(clock):
+    mixed = sim.SimBus([sim.SimServo("XL330-M288", 7, clock=clock, baud=57_600)], clock=clock)
+    url = sim.register("drivers-scan-57600", mixed)
+    try:
+        found = scan(url, (1_000_000, 57_600), (6, 7), broadcast=False)
+    finally:
+        sim.unregister("drivers-scan-57600")
+    assert [(s.id, s.model, s.model_number, s.baud) for s in found] == [(7, "XL330-M288", 1200, 57_600)]
+
+
+def test_cli_scan_json(url, capsys):
+    assert main(["scan", "--port", url, "--ids", "1-3", "--no-broadcast", "--json"]) == 0
+    out = capsys.readouterr()
+    rows = json.loads(out.out)
+    assert [(r["id"], r["model"]) for r in rows] == [(1, "XM430-W350"), (2, "XM430-W350"), (3, "XM430-W350")]
+    assert "scanning" in out.err
+
+
+def test_cli_scan_table(url, capsys):
+    assert main(["scan", "--port", url, "--ids", "8-9", "--no-broadcast"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].split() == ["ID", "MODEL", "NUMBER", "FIRMWARE", "BAUD"]
+    assert lines[1].split() == ["8", "XL430-W250", "1060", "46", "1000000"]
+
+
+@pytest.mark.parametrize(
+    ("argv", "status", "message"),
+    [
+        (["--ids", "20-21", "--no-broadcast"], 4, "no servo answered on"),
+        (["--ids", "x"], 2, "--ids: expected IDs like 1-9"),
+    ],
+    ids=["nothing-found", "bad-ids"],
+)
+def test_cli_scan_errors(url, capsys, argv, status, message):
+    assert main(["scan", "--port", url, *argv]) == status
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) <= 2  # progress line(s) + one error line
