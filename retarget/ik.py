@@ -1,17 +1,18 @@
 """Limit-aware cyclic coordinate descent (CCD) inverse kinematics.
 
-One *sweep* visits the joints from the tip to the base.  Joint ``j`` (unit world axis
-``a`` through pivot ``p``) takes the exact minimiser of the tool-to-target distance
-over its own angle, with ``u = e - p`` (tool point) and ``v = t - p`` (target)::
+One *sweep* visits every joint once.  Joint ``j`` (unit world axis ``a`` through pivot
+``p``) takes the exact minimiser of the tool-to-target distance over its own angle,
+with ``u = e - p`` (tool point) and ``v = t - p`` (target)::
 
     theta* = atan2(a . (u x v), u . v - (a . u)(a . v))      # = atan2(a.(u⊥ x v⊥), u⊥ . v⊥)
     q_j   <- clamp(q_j + w_j theta*, lower_j, upper_j)
 
 ``theta*`` lies in ``(-pi, pi]`` and the clamp never wraps, so no joint ever jumps
-through a limit or by a full turn, and the distance never grows.  The tool point is
-then rotated about that joint incrementally, so a sweep costs one forward pass plus
-``n_joints`` closed-form updates, all in plain Python floats (numpy per joint is ~9x
-slower at this size).
+through a limit or by a full turn, and since the distance is unimodal in ``q_j`` it
+never grows.  The tool point (and, base-first, the rest of the chain) is then turned
+about that joint incrementally, so a sweep costs one forward pass plus ``n_joints``
+closed-form updates, all in plain Python floats (numpy per joint is ~9x slower at this
+size).  Sweeps go base first by default (:class:`SweepOrder`).
 
 Around that update:
 
@@ -19,19 +20,28 @@ Around that update:
   sweep stops as soon as it gets there;
 - **budget**: ``max_iterations`` sweeps per call (restarts included); when it runs
   out the best pose found is returned with ``converged=False`` and its residual;
-- **escape from limit minima**: when a sweep improves the distance by less than
-  ``stall_ratio`` and the target is within the arm's reach bound, the solve restarts
-  from a new seed (the ``q0`` pose with the waist turned to the target, then
-  deterministic pseudo-random poses from ``seed``), keeping the best pose;
+- **line search**: CCD crawls along narrow valleys (a stretched arm); after a sweep
+  that leaves more than ``accel_ratio`` of the squared distance, the step it made is
+  extended (x2, x4, ...) while that keeps lowering the distance;
+- **escape from limit minima**: when a sweep improves the squared distance by less than
+  ``1 - stall_ratio`` (typically a joint pinned on a limit) and the target is within the
+  arm's reach bound, the solve restarts from a deterministic pseudo-random seed inside
+  the limits (``seed``), keeping the best pose;
+- **short levers**: a joint whose lever ``|u⊥|`` is shorter than ``short_lever`` takes
+  only ``(|u⊥| / short_lever)^2`` of its update (the Jacobian-transpose scaling), so a
+  forearm roll with a straight wrist does not swing far for a millimetre;
+- **trust region** (optional ``max_step``): no joint moves more than that from ``q0``;
 - **orientation** (optional ``rotation``): the Wang & Chen position + orientation
   update, ``phi* = atan2(k3, k2 - k1)``, with position terms scaled by the arm's reach so
   that ``orientation_weight`` is dimensionless;
-- **unreachable targets**: CCD never increases the distance, so the result is the
-  closest pose it found, never NaN.
+- **unreachable targets**: the result is the closest pose found, never NaN.
 
 Arrays: ``q`` is ``(n_joints,)`` float64 radians in ``Arm.joint_names`` order;
 targets are ``(3,)`` metres in the arm's base frame; ``rotation`` is a ``(3, 3)``
 rotation matrix of the tool frame in the base frame.
+
+Use :class:`CCDSolver` in a control loop (everything constant is precomputed once);
+:func:`solve_ik` builds one per arm and set of knobs and caches it on the arm.
 """
 
 from __future__ import annotations
@@ -153,24 +163,25 @@ class CCDSolver:
 
     - ``tolerance``: metres, position convergence (default 1 mm);
     - ``max_iterations``: sweep budget per solve, restarts included (default 100);
-    - ``weights``: a :class:`Weighting`, its name, or ``n_joints`` values in ``(0, 1]``;
-      ``weight_exponent`` for ``power`` (default 2);
+    - ``weights``: a :class:`Weighting`, its name, or ``n_joints`` values in ``(0, 1]``
+      (default uniform, see :class:`Weighting`); ``weight_exponent`` for ``power`` (default 2);
+    - ``order``: :class:`SweepOrder` (default base-first);
     - ``orientation_weight``: weight of the orientation terms against the (reach-scaled)
       position terms (default 0.1: it solved the most random 6-DOF poses);
       ``orientation_tolerance``: radians (default 0.01);
     - ``restarts``: how many new seeds may be tried after stalls (default 16);
-      ``stall_ratio``: a sweep that leaves more than this fraction of the squared error
-      is a stall (default 0.99); ``accel_ratio``: a sweep that leaves more than this fraction
-      of the squared error is followed by a line search along its step (default 0.5; 0 turns
-      it off); ``max_step``: radians, a trust region: no joint moves more than this from
-      ``q0`` in one solve (default None: only the limits).  For warm-started control ticks
-      (e.g. ``0.05``) it keeps the motion smooth where a joint has a short lever (a forearm roll
-      with the wrist straight) and CCD would swing it far for a millimetre; ``seed``: seeds the
-      pseudo-random restarts, so a solve is a pure function of its inputs;
-    - ``short_lever``: metres (default 0.2 x the arm's reach): a joint whose lever |u⊥| (the
-      tool's distance from its axis) is shorter takes only ``|u⊥| / short_lever`` of its
-      update, like a Jacobian-transpose step scaled by the column norm.  This keeps a forearm
-      roll with a straight wrist from swinging far for a millimetre; 0 turns it off.
+      ``stall_ratio``: a sweep that leaves more than this fraction of the squared distance
+      is a stall (default 0.99); ``seed``: seeds the pseudo-random restarts, so a solve is a
+      pure function of its inputs;
+    - ``accel_ratio``: a sweep that leaves more than this fraction of the squared distance is
+      followed by a line search along its step (default 0.5; 0 turns it off);
+    - ``short_lever``: metres (default 0.2 x the arm's reach, :attr:`reach`): a joint whose
+      lever ``|u⊥|`` is shorter takes ``(|u⊥| / short_lever)^2`` of its update; 0 turns it off;
+    - ``max_step``: radians, a trust region: no joint moves more than this from ``q0`` in one
+      solve (default None: only the limits).  A control loop may pass its per-tick velocity
+      limit here so that the solution is reachable within the tick.
+
+    A solver keeps scratch buffers: use one per thread.
     """
 
     def __init__(
