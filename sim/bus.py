@@ -28,6 +28,7 @@ What the servos answer, as the e-Manual says:
 from __future__ import annotations
 
 import logging
+import math
 import threading
 from collections import deque
 from collections.abc import Iterable, Sequence
@@ -108,6 +109,7 @@ class SimBus:
         self.crc_error_reply = crc_error_reply
         self.log: deque[LogEntry] = deque(maxlen=100_000)  #: the last instructions received
         self._parser = PacketParser()
+        self._wire_free_at = -math.inf  #: clock time the last byte scheduled on the wire ends
         self._lock = threading.RLock()
         self.t_start = self.clock.now()
         self._apply_scheduled_faults()
@@ -219,12 +221,15 @@ class SimBus:
         """Receive ``data`` written at ``now`` (default ``clock.now()``); the replies with their arrival times."""
         with self._lock:
             now = self.clock.now() if now is None else now
-            cursor = now + (wire_time(len(data), self.baud) if self.faults.wire else 0.0)
+            # half duplex: these bytes go out once the wire is free of earlier instructions and replies
+            cursor = max(now, self._wire_free_at) if self.faults.wire else now
+            cursor += wire_time(len(data), self.baud) if self.faults.wire else 0.0
             replies: list[Reply] = []
             for packet in self._parser.feed(data):
                 self.log.append(LogEntry(cursor, packet.id, packet.instruction, packet.params, packet.crc_ok))
                 out = self._dispatch(packet, cursor)
                 cursor = self._schedule(out, cursor, replies)
+            self._wire_free_at = cursor
             return replies
 
     def _schedule(self, out: list[tuple[SimServo, bytes]], cursor: float, replies: list[Reply]) -> float:

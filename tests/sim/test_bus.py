@@ -227,3 +227,12 @@ def test_constructor_errors():
         sim.SimBus.from_ids([1], "XL999", clock=clock)
     with pytest.raises(ConfigError, match="joint angles"):
         sim.SimBus.from_arm("wx250s", clock=clock, pose=[0.0])
+
+
+def test_wire_is_half_duplex_a_write_delays_the_next_request():
+    clock = VirtualClock()
+    bus = sim.SimBus.from_ids([1, 2], "XM430-W350", clock=clock, return_delay_time=0, faults=Faults(wire=True))
+    sync_write = build_instruction(0xFE, Instruction.SYNC_WRITE, u16(65) + u16(1) + b"\x01\x01\x02\x01")
+    assert bus.feed(sync_write) == []
+    (reply,) = bus.feed(build_instruction(1, PING))  # written at the same instant, sent after the sync write
+    assert reply.due == pytest.approx(wire_time(len(sync_write) + 10 + 14, 1_000_000))
