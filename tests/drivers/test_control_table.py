@@ -1,0 +1,98 @@
+"""The register tables: consistent, matching the e-Manual's key facts, and the encode/decode helpers."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from drivers import control_table as ct
+from retarget.arm import SERVO_MODELS
+
+
+def test_models_are_the_arm_models():
+    assert set(ct.MODELS) == set(SERVO_MODELS)
+    assert {m.number for m in ct.MODELS.values()} == {1060, 1020, 1200, 1120}
+    assert all(ct.MODEL_BY_NUMBER[m.number] is m for m in ct.MODELS.values())
+
+
+@pytest.mark.parametrize("model", list(ct.MODELS.values()), ids=lambda m: m.name)
+def test_registers_do_not_overlap_and_defaults_fit(model):
+    regs = sorted(model.registers.values(), key=lambda r: r.address)
+    for a, b in zip(regs, regs[1:], strict=False):
+        assert a.end <= b.address, (a.name, b.name)
+    assert regs[-1].end <= model.table_size
+    memory = model.defaults()
+    assert len(memory) == model.table_size
+    for reg in regs:
+        if reg.default is not None:
+            assert reg.in_range(reg.default), reg.name
+            assert reg.decode(memory[reg.address : reg.end]) == reg.default
+    assert model.register("Model Number").default == model.number
+    assert all(r.eeprom == (r.address < 64) for r in regs)
+
+
+# (model, register, address, size, default) as printed in the e-Manual control tables
+MANUAL_FACTS = [
+    ("XL430-W250", "Velocity Limit", 44, 4, 265),
+    ("XL430-W250", "Present Load", 126, 2, 0),
+    ("XM430-W350", "Current Limit", 38, 2, 1193),
+    ("XM430-W350", "Velocity Limit", 44, 4, 200),
+    ("XL330-M288", "Current Limit", 38, 2, 1750),
+    ("XL330-M288", "Shutdown", 63, 1, 53),
+    ("XM540-W270", "Current Limit", 38, 2, 2047),
+    ("XM540-W270", "Velocity Limit", 44, 4, 128),
+    ("XM540-W270", "Goal Position", 116, 4, None),
+    ("XM540-W270", "Return Delay Time", 9, 1, 250),
+]
+
+
+@pytest.mark.parametrize(("name", "register", "address", "size", "default"), MANUAL_FACTS)
+def test_manual_facts(name, register, address, size, default):
+    reg = ct.MODELS[name].register(register)
+    assert (reg.address, reg.size, reg.default) == (address, size, default)
+
+
+def test_model_specific_items():
+    xl430 = ct.model("XL430-W250")
+    assert xl430.load_register == "Present Load" and xl430.current_unit_ma is None
+    assert "Goal Current" not in xl430.registers
+    assert ct.OperatingMode.CURRENT not in xl430.operating_modes
+    assert ct.model(1020).load_register == "Present Current"
+    assert "External Port Data 1" in ct.model("XM540-W270").registers
+    assert ct.model("xl330-m288").max_baud_code == 6
+    assert all(m.fast_sync_read for m in ct.MODELS.values())
+
+
+def test_lookup_errors():
+    with pytest.raises(KeyError, match="Expected one of XL430-W250"):
+        ct.model("XM999")
+    with pytest.raises(KeyError, match="XL430-W250 has no register 'Goal Current'"):
+        ct.model("XL430-W250").register("Goal Current")
+
+
+def test_encode_decode_round_trip_and_errors():
+    reg = ct.model("XM430-W350").register("Homing Offset")
+    for value in (-1_044_479, -1, 0, 1, 1_044_479):
+        assert reg.decode(reg.encode(value)) == value
+    assert reg.encode(-1) == b"\xff\xff\xff\xff"
+    with pytest.raises(ValueError, match="LED: expected 0..255, got 256"):
+        ct.model("XM430-W350").register("LED").encode(256)
+    with pytest.raises(ValueError, match="expected 4 bytes, got 2"):
+        reg.decode(b"\x00\x00")
+    assert not reg.in_range(1_044_480)
+
+
+def test_covering_and_at():
+    model = ct.model("XM430-W350")
+    assert [r.name for r in model.covering(108, 12)] == ["Profile Acceleration", "Profile Velocity", "Goal Position"]
+    assert model.at(116).name == "Goal Position" and model.at(117) is None
+
+
+def test_units_and_names():
+    assert ct.pulses_to_rad(4096) == pytest.approx(2 * math.pi)
+    assert ct.rad_to_pulses(ct.pulses_to_rad(1234.5)) == pytest.approx(1234.5)
+    assert ct.velocity_units_to_rad_s(1) == pytest.approx(0.229 * 2 * math.pi / 60)
+    assert ct.rad_s_to_velocity_units(ct.velocity_units_to_rad_s(17)) == pytest.approx(17)
+    assert ct.hardware_error_names(0x25) == ("input_voltage", "overheating", "overload")
+    assert ct.BAUD_CODES[1_000_000] == 3 and ct.BAUD_RATES[1] == 57600
