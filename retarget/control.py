@@ -282,13 +282,14 @@ class ControlLoop:
                 c1 = perf()
                 present = None
                 retries = 0
+                c2 = c1
                 if bus is not None:
                     bus.write_goals(q_cmd)
                     present = bus.read_positions()
+                    c2 = perf()
                     retries_now = bus.status().retries
                     retries = retries_now - retries_seen
                     retries_seen = retries_now
-                c2 = perf()
                 last_slot = k
                 # deadline: did this tick end after the next slot began?
                 now = clock.now() - t0

@@ -1,0 +1,200 @@
+"""``retarget replay`` end to end on the in-process simulator (``--fast``), its output, Ctrl-C and bad input."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import re
+import signal
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import retarget
+from retarget.cli import main
+from retarget.clock import VirtualClock
+
+from .test_control import servo_angles, torque
+
+
+@pytest.fixture(scope="module")
+def arm():
+    return retarget.load_arm("wx250s")
+
+
+@pytest.fixture
+def registered(arm):
+    """A simulated wx250s on a virtual clock registered as sim://@NAME, so the test can look at its servos."""
+    import sim
+
+    simbus = sim.SimBus.from_arm(arm, clock=VirtualClock(), faults=sim.Faults(wire=True))
+    name = f"cli-{id(simbus)}"
+    url = sim.register(name, simbus)
+    yield simbus, url
+    sim.unregister(name)
+
+
+def replay(capsys, *args: str) -> tuple[int, str, str]:
+    code = main(["replay", *args])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def read_csv(path) -> list[dict[str, str]]:
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_demo_clip_end_to_end(arm, registered, capsys, tmp_path):
+    simbus, url = registered
+    csv_path = tmp_path / "run.csv"
+    code, out, err = replay(
+        capsys, "--port", url, "--fast", "--json", "--shutdown", "hold", "--end", "3", "--telemetry", str(csv_path)
+    )
+    assert code == 0, err
+    summary = json.loads(out)
+    assert summary["clip"] == "demo.bvh" and summary["arm"] == "wx250s"
+    assert summary["ticks"] == 301 and summary["rate_hz"] == 100
+    assert summary["ik_converged_pct"] > 95 and summary["bus_errors"] == 0 and not summary["interrupted"]
+    assert "replay: demo.bvh on wx250s" in err and "IK:" in err  # the human summary on stderr
+    rows = read_csv(csv_path)
+    assert len(rows) == summary["ticks"]
+    assert [float(r["time_s"]) for r in rows[:3]] == [0.0, 0.01, 0.02]
+    cmd = np.array([[float(r[f"{j}_cmd_rad"]) for j in arm.joint_names] for r in rows])
+    present = np.array([[float(r[f"{j}_present_rad"]) for j in arm.joint_names] for r in rows])
+    assert np.all(cmd >= arm.lower) and np.all(cmd <= arm.upper)
+    assert np.all(np.abs(np.diff(cmd, axis=0)) <= arm.max_velocity / 100 + 1e-5)  # 6-decimal CSV rounding
+    assert np.max(np.abs(present[-1] - cmd[-1])) < 0.1
+    assert sum(int(r["velocity_limited"]) for r in rows) == summary["velocity_limited_ticks"]
+    assert max(float(r["ik_error_mm"]) for r in rows) == pytest.approx(summary["ik_error_max_mm"], abs=1e-3)
+    # --shutdown hold: the servos stay on and settle on the last solved angles
+    simbus.clock.advance(1.0)
+    np.testing.assert_allclose(servo_angles(simbus, arm), cmd[-1], atol=2 * 2 * np.pi / 4096 + 1e-6)
+    assert torque(simbus, arm) == [1] * 8
+
+
+@pytest.mark.shared
+def test_a_shared_clip_end_to_end_rests_and_turns_torque_off(arm, registered, capsys, shared_bvh):
+    simbus, url = registered
+    clip = shared_bvh / "motion_dance.bvh"
+    code, out, err = replay(capsys, str(clip), "--port", url, "--fast", "--json", "--start", "120f", "--end", "2")
+    assert code == 0, err
+    summary = json.loads(out)
+    assert summary["clip"] == "motion_dance.bvh"
+    assert summary["ticks"] == 101  # 1 s (frame 120 at 120 fps) .. 2 s at 100 Hz
+    assert summary["frames"] == 121
+    assert summary["ik_converged_pct"] == 100.0
+    assert torque(simbus, arm) == [0] * 8  # --shutdown rest (default): rest pose, then torque off
+    np.testing.assert_allclose(servo_angles(simbus, arm), arm.rest, atol=0.06)
+
+
+def test_default_in_process_bus_and_dry_run(capsys):
+    code, out, err = replay(capsys, "--fast", "--json", "--end", "0.5")
+    assert code == 0, err
+    assert json.loads(out)["ticks"] == 51 and json.loads(out)["bus_ms_p50"] > 0
+    code, out, err = replay(capsys, "--dry-run", "--fast", "--json", "--end", "0.5", "--side", "left")
+    assert code == 0, err
+    summary = json.loads(out)
+    assert summary["dry_run"] and summary["ticks"] == 51 and summary["bus_ms_p50"] == 0
+    assert "dry run: demo.bvh" in err
+
+
+def test_loop_and_telemetry_on_stdout(capsys):
+    code, out, err = replay(capsys, "--dry-run", "--fast", "--loop", "--max-ticks", "250", "--start", "1", "--end", "2",
+                            "--telemetry", "-")  # fmt: skip
+    assert code == 0, err
+    rows = list(csv.DictReader(out.splitlines()))
+    assert len(rows) == 250
+    clip = [float(r["clip_time_s"]) for r in rows]
+    assert min(clip) == pytest.approx(1.0) and max(clip) < 2.0
+    assert all(r["waist_present_rad"] == "" for r in rows)  # dry run: nothing read back
+
+
+def test_progress_lines_on_request(capsys):
+    code, _, err = replay(capsys, "--dry-run", "--fast", "--end", "2.5", "--progress")
+    assert code == 0
+    progress = [line for line in err.splitlines() if line.startswith("retarget:") and "clip" in line]
+    assert len(progress) == 2  # at 1 s and 2 s of run time
+
+
+def test_sigint_stops_cleanly_through_the_shutdown_sequence(arm, registered, capsys):
+    simbus, url = registered
+
+    def interrupt_once_running() -> None:
+        """Ctrl-C once the loop has sent 20 goal writes (or after 30 s, so a broken run cannot hang)."""
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline:
+            if sum(1 for e in list(simbus.log) if e.instruction == SYNC_WRITE) >= 20:
+                break
+            time.sleep(0.005)
+        os.kill(os.getpid(), signal.SIGINT)
+
+    watcher = threading.Thread(target=interrupt_once_running, daemon=True)
+    watcher.start()
+    code, out, err = replay(capsys, "--port", url, "--fast", "--loop", "--json")
+    watcher.join()
+    assert code == 130
+    assert json.loads(out)["interrupted"] is True
+    assert "stopping" in err and "(interrupted)" in err
+    assert torque(simbus, arm) == [0] * 8
+    np.testing.assert_allclose(servo_angles(simbus, arm), arm.rest, atol=0.06)
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the handler was put back
+
+
+SYNC_WRITE = 0x83
+
+
+def bad_bvh(tmp_path):
+    path = tmp_path / "bad.bvh"
+    path.write_text("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0\n")
+    return str(path)
+
+
+@pytest.mark.parametrize(
+    ("args", "match"),
+    [
+        (["missing.bvh"], r"missing\.bvh"),
+        ([bad_bvh], r"bad\.bvh:4: "),
+        (["--arm", "nope"], r"nope"),
+        (["--rate", "0"], r"--rate: Expected a tick rate > 0 Hz \(got 0\.0\)"),
+        (["--rate", "fast"], r"--rate: Expected a number \(got 'fast'\)"),
+        (["--speed", "-2"], r"--speed: Expected a speed > 0"),
+        (["--start", "soon"], r"--start: Expected seconds \(2\.5, 2\.5s\) or frames \(300f\) \(got 'soon'\)"),
+        (["--start", "3", "--end", "2"], r"--end: Expected an end time after --start \(3 s\)"),
+        (["--start", "99"], r"--start: Expected a start time before the clip's end"),
+        (["--max-ticks", "1.5"], r"--max-ticks: Expected an integer"),
+        (["--side", "up"], r"--side: Expected 'left' or 'right' \(got 'up'\)"),
+        (["--forward", "+q"], r"--forward: Expected one of auto"),
+        (["--forward", "+y"], r"mapping\.forward: Expected a forward axis perpendicular to up"),
+        (["--origin", "1,2"], r"--origin: Expected three numbers"),
+        (["--floor", "low"], r"--floor: Expected a finite number of metres \(got 'low'\)"),
+        (["--velocity-scale", "2"], r"--velocity-scale: Expected a fraction in \(0, 1\]"),
+        (["--shutdown", "later"], r"--shutdown: Expected hold, rest or off \(got 'later'\)"),
+        (["--fast", "--port", "/dev/ttyUSB0"], r"--port: --fast needs the simulated bus"),
+        (["--dry-run", "--port", "sim://wx250s"], r"--port: --dry-run uses no bus"),
+        (["--json", "--telemetry", "-"], r"--telemetry: --telemetry - and --json both write to stdout"),
+        (["--fast", "--port", "sim://wx250s?bogus=1"], r"unknown option\(s\) bogus"),
+        (["--dry-run", "--telemetry", "/nonexistent/dir/run.csv"], r"/nonexistent/dir/run\.csv"),
+    ],
+    ids=lambda v: " ".join(v) if isinstance(v, list) and all(isinstance(x, str) for x in v) else None,
+)
+def test_bad_input_exits_2_with_one_line(capsys, tmp_path, args, match):
+    args = [a(tmp_path) if callable(a) else a for a in args]
+    code, out, err = replay(capsys, *args, "--fast") if "--port" not in args else replay(capsys, *args)
+    assert code == 2
+    assert out == ""
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("retarget: ")
+    assert re.search(match, lines[0]), lines[0]
+
+
+def test_help_has_examples(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["replay", "--help"])
+    assert info.value.code == 0
+    out = capsys.readouterr().out
+    assert "examples:" in out and "retarget replay --fast --json" in out and "--telemetry" in out
