@@ -37,7 +37,7 @@ import numpy as np
 
 from drivers import units
 from drivers.comm import Link
-from drivers.control_table import DriveMode, Model, OperatingMode, hardware_error_names
+from drivers.control_table import MODEL_BY_NUMBER, DriveMode, Model, OperatingMode, hardware_error_names
 from drivers.control_table import model as lookup_model
 from drivers.latency import check_latency_timer
 from drivers.port import open_port
@@ -128,7 +128,8 @@ class DynamixelBus:
         retries: repeats of a failed transaction before it raises (per tick).
         return_delay_us: Return Delay Time written at connect (0..508 us, 2 us steps; servo default 500).
         profile: velocity- or time-based servo profile.
-        profile_velocity: rad/s cap of the servo's own profile (VELOCITY); default each joint's max velocity.
+        profile_velocity: rad/s cap of the servo's own profile (VELOCITY); default each joint's max velocity;
+            0 = no cap.
         profile_acceleration: rad/s^2 (VELOCITY); default 0 = unlimited.
         profile_time: seconds per move (TIME); default ``dt`` or 0.1 s.  The ramp is a quarter of it.
         dt: the control tick period in seconds; when set, write_goals limits every joint's step per call to
@@ -375,8 +376,18 @@ class DynamixelBus:
             g = self._gripper
             t = units.signed32(link.read_register(g.id, g.model.register("Present Position")))
             link.write_register(g.id, g.model.register("Goal Position"), int(np.clip(t, g.min_tick, g.max_tick)))
-        for s in self.servos:
-            link.write_register(s.id, s.model.register("Torque Enable"), 1)
+        enabled: list[ServoPlan] = []
+        try:
+            for s in self.servos:
+                enabled.append(s)  # before the write: a servo may act on it and still lose its reply
+                link.write_register(s.id, s.model.register("Torque Enable"), 1)
+        except BaseException:
+            for s in enabled:  # all or nothing: an arm half under torque is worse than a limp one
+                try:
+                    link.write_register(s.id, s.model.register("Torque Enable"), 0)
+                except BusError as exc:
+                    log.error("torque off after a failed torque on: %s", exc)
+            raise
         self._torque = True
         primary = self._primary_index
         self._last_goal = units.ticks_to_rad(goal_ticks[primary], offset=self._servo_offset[primary])
@@ -478,8 +489,10 @@ class DynamixelBus:
             self._firmware[s.id] = reply.firmware
             if reply.model_number != s.model.number:
                 wrong_ids.append(s.id)
+                found = MODEL_BY_NUMBER.get(reply.model_number)
+                found_name = f"{found.name} ({found.number})" if found else f"model {reply.model_number}"
                 expected = f"{s.model.name} ({s.model.number})"
-                wrong.append(f"servo {s.id} is model {reply.model_number}, the arm expects {expected}")
+                wrong.append(f"servo {s.id} is {found_name}, the arm expects {expected}")
         problems: list[str] = []
         if missing:
             problems.append(
@@ -542,7 +555,7 @@ class DynamixelBus:
                 log.warning("servo %d: turning torque off to write its EEPROM settings", s.id)
                 link.write_register(s.id, torque, 0)
             for name, (current, value) in changes.items():  # Operating Mode first: changing it resets the profile
-                log.debug("servo %d: %s %d -> %d", s.id, name, current, value)
+                log.info("servo %d: %s %d -> %d", s.id, name, current, value)
                 link.write_register(s.id, s.model.register(name), value)
         for name, value in ram.items():
             link.write_register(s.id, s.model.register(name), value)
@@ -585,7 +598,7 @@ class DynamixelBus:
         link.alerts.clear()
         self._faulted = None  # a fault stops goals from the caller, not the shutdown sequence
         rest = np.clip(self.arm.rest, self.lower, self.upper)
-        present = self.read_positions_raw()
+        present = self._read_positions_unchecked()
         if self.profile is Profile.TIME:
             duration = float(np.max(np.abs(rest - present))) / self.rest_speed
             pv = int(min(units.seconds_to_ms(duration), 32737))
@@ -602,7 +615,7 @@ class DynamixelBus:
         self._last_goal = rest
         start = self.clock.now()
         while True:
-            err = float(np.max(np.abs(self.read_positions_raw() - rest)))
+            err = float(np.max(np.abs(self._read_positions_unchecked() - rest)))
             if err <= self.rest_tolerance:
                 log.info("%s reached its rest pose in %.2f s", self.arm.name, self.clock.now() - start)
                 return
@@ -613,8 +626,8 @@ class DynamixelBus:
                 return
             self.clock.sleep_until(self.clock.now() + 0.05)
 
-    def read_positions_raw(self) -> np.ndarray:
-        """Like read_positions, but allowed while faulted (used by the shutdown sequence)."""
+    def _read_positions_unchecked(self) -> np.ndarray:
+        """Like read_positions, but allowed while faulted (the shutdown sequence)."""
         ticks = self._read_joint_ticks(check_active=False)
         return units.ticks_to_rad(ticks[self._primary_index], offset=self._servo_offset[self._primary_index])
 

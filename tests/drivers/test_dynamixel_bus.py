@@ -103,7 +103,8 @@ def test_wrong_models_fail_before_any_torque(make_bus, arm, clock):
     url = sim.register("drivers-wrong-models", wrong)
     try:
         bus = make_bus(url)
-        with pytest.raises(BusError, match=r"servo 1 is model 1060, the arm expects XM430-W350 \(1020\)") as info:
+        expected = r"servo 1 is XL430-W250 \(1060\), the arm expects XM430-W350 \(1020\)"
+        with pytest.raises(BusError, match=expected) as info:
             bus.connect()
         assert info.value.ids == (1, 2, 3, 4, 5, 6, 7)
         assert "\n" not in str(info.value)
@@ -401,3 +402,13 @@ def test_fault_options_in_the_url_dropped_replies(arm):
         for _ in range(10):
             bus.read_positions()
         assert bus.status().retries > 0 and bus.status().errors == 0
+
+
+def test_torque_on_is_all_or_nothing(make_bus, url, sim_bus):
+    bus = make_bus(url, retries=0, shutdown=ShutdownMode.HOLD)
+    bus.connect()
+    bus.set_torque(False)
+    sim_bus.servo(4).set("Status Return Level", 1)  # acts on writes but never answers them
+    with pytest.raises(BusError, match=r"^servo 4: no status packet writing Torque Enable = 1$"):
+        bus.set_torque(True)
+    assert set(torques(sim_bus).values()) == {0}  # servos 1-3 were enabled, then turned off again
