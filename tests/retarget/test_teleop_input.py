@@ -1,0 +1,404 @@
+"""Teleop target input: parsing, bounds, the gate's counted rejections, stdin/UDP/one-shot sources, staleness."""
+
+from __future__ import annotations
+
+import io
+import json
+import logging
+import random
+import socket
+import time
+
+import numpy as np
+import pytest
+
+import retarget
+from retarget.clock import VirtualClock
+from retarget.errors import ConfigError
+from retarget.teleop_input import (
+    BasePose,
+    OneShotSource,
+    Reject,
+    StdinSource,
+    TargetBounds,
+    TargetGate,
+    TargetRejected,
+    UdpSource,
+    is_loopback,
+    parse_address,
+    parse_message,
+    step_toward,
+)
+
+
+@pytest.fixture(scope="module")
+def arm():
+    return retarget.load_arm("wx250s")
+
+
+@pytest.fixture
+def gate(arm):
+    return TargetGate(TargetBounds.for_arm(arm), clock=VirtualClock(5.0))
+
+
+# ------------------------------------------------------------------------------------------------ parsing
+
+
+@pytest.mark.parametrize(
+    ("text", "position", "rpy_deg"),
+    [
+        ("0.3 0 0.2", (0.3, 0, 0.2), None),
+        ("0.3,0,0.2", (0.3, 0, 0.2), None),
+        ("  0.3 ,\t-0.1 , .2  ", (0.3, -0.1, 0.2), None),
+        ("3e-1 0 2E-1", (0.3, 0, 0.2), None),
+        ("0.3 0 0.2 10 20 30", (0.3, 0, 0.2), (10, 20, 30)),
+        ('{"x": 0.3, "y": 0, "z": 0.2}', (0.3, 0, 0.2), None),
+        ('{"x": 0.3, "y": 0, "z": 0.2, "rpy": [0, 90, 0]}', (0.3, 0, 0.2), (0, 90, 0)),
+        ('{"z": 0.2, "y": 1, "x": 0.3, "yaw": 45}', (0.3, 1, 0.2), (0, 0, 45)),
+        (b"0.1 0.2 0.3", (0.1, 0.2, 0.3), None),
+    ],
+    ids=["spaces", "commas", "mixed", "exponent", "six", "json", "json-rpy", "json-yaw", "bytes"],
+)
+def test_parse_valid_forms(text, position, rpy_deg):
+    m = parse_message(text)
+    np.testing.assert_allclose(m.position, position)
+    if rpy_deg is None:
+        assert m.rpy is None
+    else:
+        np.testing.assert_allclose(m.rpy, np.radians(rpy_deg))
+
+
+@pytest.mark.parametrize("text", ["", "   ", "# a comment", b"\n"], ids=["empty", "blank", "comment", "newline"])
+def test_parse_skips_blank_and_comments(text):
+    assert parse_message(text) is None
+
+
+@pytest.mark.parametrize(
+    ("text", "reason", "match"),
+    [
+        ("0.3 0", Reject.MALFORMED, "x y z"),
+        ("0.3 0 0.2 1", Reject.MALFORMED, "x y z"),
+        ("1_0 0 0", Reject.MALFORMED, "x y z"),
+        ("0x1 0 0", Reject.MALFORMED, "x y z"),
+        ("a b c", Reject.MALFORMED, "x y z"),
+        ('{"x": 0.3, "y": 0', Reject.MALFORMED, "JSON object"),
+        ("[0.3, 0, 0.2]", Reject.MALFORMED, "x y z"),
+        ('{"x": 0.3, "y": 0}', Reject.MALFORMED, r'\{"x"'),
+        ('{"x": 0.3, "y": 0, "z": 0.2, "w": 1}', Reject.MALFORMED, r'\{"x"'),
+        ('{"x": "0.3", "y": 0, "z": 0.2}', Reject.MALFORMED, "numbers"),
+        ('{"x": true, "y": 0, "z": 0.2}', Reject.MALFORMED, "numbers"),
+        ('{"x": 0, "y": 0, "z": 0, "rpy": [1, 2]}', Reject.MALFORMED, "rpy"),
+        ('{"x": 0, "y": 0, "z": 0, "rpy": [1, 2, 3], "yaw": 1}', Reject.MALFORMED, "not both"),
+        ("[" * 5000, Reject.OVERSIZE, "at most"),
+        (b"\xff\xfe 1 2", Reject.MALFORMED, "UTF-8"),
+        ("nan 0 0", Reject.NON_FINITE, "finite"),
+        ("0 -inf 0", Reject.NON_FINITE, "finite"),
+        ("1e999 0 0", Reject.NON_FINITE, "finite"),
+        ('{"x": NaN, "y": 0, "z": 0}', Reject.NON_FINITE, "finite"),
+        ('{"x": Infinity, "y": 0, "z": 0}', Reject.NON_FINITE, "finite"),
+        ('{"x": 1' + "0" * 400 + ', "y": 0, "z": 0}', Reject.NON_FINITE, "finite"),
+    ],
+    ids=lambda v: v.name if isinstance(v, Reject) else None,
+)
+def test_parse_rejects(text, reason, match):
+    with pytest.raises(TargetRejected, match=match) as info:
+        parse_message(text)
+    assert info.value.reason is reason
+
+
+def test_size_limit_is_in_bytes():
+    line = "0.3 0 0.2" + " " * 91  # 100 bytes
+    assert parse_message(line, max_bytes=100) is not None
+    with pytest.raises(TargetRejected, match="at most 99 bytes, got 100"):
+        parse_message(line, max_bytes=99)
+    with pytest.raises(TargetRejected, match="got 12"):
+        parse_message("0.3 0 0.2 é", max_bytes=10)  # 11 characters, 12 bytes
+
+
+# ------------------------------------------------------------------------------------------------ bounds, frames
+
+
+def test_bounds_for_arm(arm):
+    b = TargetBounds.for_arm(arm, margin=0.1)
+    from retarget.mapping import arm_geometry
+
+    g = arm_geometry(arm)
+    assert b.max_radius == pytest.approx(g.reach + 0.1)
+    assert b.lower[2] == 0.0  # cut at the mounting plane
+    b.check(g.pivot + [g.reach + 0.05, 0, 0])  # unreachable but within the margin: accepted
+    with pytest.raises(TargetRejected, match="within") as info:
+        b.check(g.pivot + np.array([1, 1, 1]) * (g.reach + 0.1) * 0.9)  # a corner of the cube
+    assert info.value.reason is Reject.OUT_OF_REACH
+    with pytest.raises(TargetRejected, match="inside the box") as info:
+        b.check([0.3, 0.0, -0.01])
+    assert info.value.reason is Reject.OUT_OF_BOX
+
+
+def test_bounds_custom_box(arm):
+    b = TargetBounds.for_arm(arm, box=(0, -0.1, 0.1, 0.4, 0.1, 0.5))
+    b.check([0.2, 0, 0.3])
+    with pytest.raises(TargetRejected, match="inside the box"):
+        b.check([0.2, 0.2, 0.3])
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"box": (0, 0, 0, 1, 1)}, "6 finite numbers"),
+        ({"box": (0, 0, 0, 1, 1, float("nan"))}, "6 finite numbers"),
+        ({"box": (0, 0, 1, 1, 1, 0.5)}, "minimum below its maximum"),
+        ({"margin": -1}, "margin"),
+    ],
+    ids=["short", "nan", "inverted", "margin"],
+)
+def test_bounds_errors(arm, kwargs, match):
+    with pytest.raises(ConfigError, match=match):
+        TargetBounds.for_arm(arm, **kwargs)
+
+
+def test_base_pose_round_trip():
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        pose = BasePose.from_xyz_rpy(rng.uniform(-1, 1, 3), rng.uniform(-180, 180, 3))
+        p = rng.uniform(-1, 1, 3)
+        R = BasePose.from_xyz_rpy((0, 0, 0), rng.uniform(-180, 180, 3)).rotation
+        base, Rb = pose.to_base(pose.to_world(p), pose.rotation @ R)
+        np.testing.assert_allclose(base, p, atol=1e-12)
+        np.testing.assert_allclose(Rb, R, atol=1e-12)
+
+
+def test_gate_world_frame(arm):
+    pose = BasePose.from_xyz_rpy((1.0, 2.0, 0.0), (0, 0, 90))  # base at (1, 2), turned 90 deg
+    gate = TargetGate(TargetBounds.for_arm(arm), clock=VirtualClock(), frame_pose=pose)
+    t = gate.accept("1.0 2.3 0.2")  # 0.3 m along world +y = base +x
+    np.testing.assert_allclose(t.position, [0.3, 0, 0.2], atol=1e-12)
+
+
+# ------------------------------------------------------------------------------------------------ the gate
+
+
+def test_gate_accepts_and_stamps(gate):
+    t = gate.accept('{"x": 0.3, "y": 0, "z": 0.2, "rpy": [0, 90, 0]}')
+    assert t.received == 5.0 and t.seq == 0
+    np.testing.assert_allclose(t.rotation @ [1, 0, 0], [0, 0, -1], atol=1e-12)  # pitch 90: tool x points down
+    gate.clock.advance(1.0)
+    assert gate.accept("0.3 0 0.25").received == 6.0
+    assert gate.accepted == 2 and gate.rejects.total == 0
+
+
+def garbage(rng: random.Random, n: int) -> list[bytes]:
+    """``n`` seeded garbage messages, none blank: random bytes, NaN/inf, huge numbers, partial/bad JSON, oversize."""
+    out: list[bytes] = []
+    while len(out) < n:
+        kind = rng.randrange(8)
+        if kind == 0:
+            m = b"!" + bytes(rng.randrange(256) for _ in range(rng.randrange(0, 64)))  # "!": never blank
+        elif kind == 1:
+            m = f"{rng.choice(['nan', 'NaN', 'inf', '-inf', '1e999'])} {rng.random()} {rng.random()}".encode()
+        elif kind == 2:
+            m = " ".join(f"{rng.uniform(-1, 1) * 10 ** rng.randrange(3, 300):g}" for _ in range(3)).encode()
+        elif kind == 3:
+            full = json.dumps({"x": rng.random(), "y": rng.random(), "z": rng.random()})
+            m = full[: rng.randrange(1, len(full) - 1)].encode()
+        elif kind == 4:
+            m = rng.choice([b'{"x": NaN, "y": 0, "z": 0.2}', b'{"x": 0.3}', b'{"x": [], "y": 0, "z": 0}', b"null"])
+        elif kind == 5:
+            m = b"0.3 0 0.2 " * rng.randrange(120, 300)  # oversize
+        elif kind == 6:
+            m = f"{rng.random()} {rng.random()}".encode()  # two numbers
+        else:
+            m = f"0.3 0 {-rng.uniform(0.01, 1)}".encode()  # below the floor
+        m = m.replace(b"\n", b"").replace(b"\r", b"")
+        if m.strip() and not m.strip().startswith(b"#"):
+            out.append(m)
+    return out
+
+
+def test_garbage_is_counted_and_never_accepted(gate):
+    rng = random.Random(7)
+    messages = garbage(rng, 1000)
+    for m in messages:
+        assert gate.accept(m) is None
+    counts = gate.rejects.counts()
+    assert sum(counts.values()) == 1000
+    assert gate.accepted == 0
+    assert all(counts[r.value] > 0 for r in (Reject.OVERSIZE, Reject.MALFORMED, Reject.NON_FINITE, Reject.OUT_OF_BOX))
+
+
+def test_rejections_warn_rate_limited(gate, caplog):
+    with caplog.at_level(logging.WARNING, logger="retarget.teleop_input"):
+        for _ in range(250):
+            gate.accept("nan 0 0")
+    lines = [r.getMessage() for r in caplog.records]
+    assert len(lines) == 3 + 2  # the first three, then the 100th and 200th
+    assert "200 non_finite so far" in lines[-1]
+
+
+# ------------------------------------------------------------------------------------------------ sources
+
+
+def test_stdin_source_in_order_with_garbage(gate):
+    rng = random.Random(11)
+    bad = garbage(rng, 1000)
+    good = [f"{0.2 + 0.001 * i:.3f} 0 0.2".encode() for i in range(50)]
+    lines = bad[:500] + good + bad[500:]
+    with StdinSource(gate, io.BytesIO(b"\n".join(lines) + b"\n")) as src:
+        src.join(10)
+        assert src.closed
+        got = src.drain()
+    assert [t.seq for t in got] == list(range(50))
+    np.testing.assert_allclose([t.position[0] for t in got], [0.2 + 0.001 * i for i in range(50)])
+    assert gate.rejects.total == 1000 and src.lines == 1050
+    assert src.latest() is got[-1] and src.drain() == []
+
+
+def test_stdin_oversize_line_is_skipped_whole(gate):
+    data = b"x" * 5000 + b" 1 2 3\n0.3 0 0.2\n" + b"9" * 2000  # a long line, a good one, a long last line (no EOL)
+    src = StdinSource(gate, io.BytesIO(data)).start()
+    src.join(5)
+    assert [t.position.tolist() for t in src.drain()] == [[0.3, 0, 0.2]]
+    assert src.rejects["oversize"] == 2
+
+
+def test_stdin_text_stream(gate):
+    src = StdinSource(gate, io.StringIO("0.3 0 0.2\r\n\n# hi\nnope\n")).start()
+    src.join(5)
+    assert len(src.drain()) == 1 and src.rejects["malformed"] == 1 and src.lines == 4
+
+
+def test_queue_drops_oldest_when_full(gate):
+    data = "".join(f"0.3 0 {0.1 + i * 1e-3:.4f}\n" for i in range(10)).encode()
+    src = StdinSource(gate, io.BytesIO(data), queue_length=4).start()
+    src.join(5)
+    assert [t.seq for t in src.drain()] == [6, 7, 8, 9] and src.dropped == 6
+
+
+def test_stale_detection_on_virtual_clock(gate):
+    clock = gate.clock
+    src = StdinSource(gate, io.BytesIO(b"0.3 0 0.2\n")).start()
+    assert src.wait(5)
+    src.join(5)
+    assert src.is_stale(clock.now() + 10, 0.5)  # judged at a later time
+    t = src.latest().received
+    assert not src.is_stale(t + 0.5, 0.5)
+    assert src.is_stale(t + 0.5001, 0.5)
+    empty = StdinSource(gate, io.BytesIO(b"")).start()
+    empty.join(5)
+    assert empty.is_stale(clock.now(), 1.0) and empty.closed  # no target at all is stale
+
+
+def test_one_shot_source(gate):
+    src = OneShotSource(gate, "0.3,0,0.2", rpy="0,90,0")
+    assert src.closed
+    (t,) = src.drain()
+    np.testing.assert_allclose(t.position, [0.3, 0, 0.2])
+    np.testing.assert_allclose(t.rotation @ [0, 0, 1], [1, 0, 0], atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("to", "rpy", "match"),
+    [
+        ("0.3,0", None, "--to: Expected 'x y z'"),
+        ("", None, "--to: Expected X,Y,Z"),
+        ("0.3,0,0.2,0,0,0", None, "--rpy"),
+        ("nan,0,0.2", None, "--to: Expected finite"),
+        ("5,0,0.2", None, "--to: Expected a point inside the box"),
+        ("0.3,0,0.2", "0,0", "--rpy: Expected 'x y z'"),
+        ("0.3,0,0.2", "#", "--rpy: Expected R,P,Y"),
+    ],
+    ids=["short", "empty", "six", "nan", "box", "rpy-short", "rpy-empty"],
+)
+def test_one_shot_errors_name_the_option(gate, to, rpy, match):
+    with pytest.raises(TargetRejected, match=match):
+        OneShotSource(gate, to, rpy=rpy)
+
+
+def _send(src: UdpSource, payloads: list[bytes], *, batch: int = 50) -> None:
+    """Send ``payloads`` to ``src`` in batches, waiting for each batch to be read (UDP drops on a full buffer)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        for i in range(0, len(payloads), batch):
+            want = src.datagrams + len(payloads[i : i + batch])
+            for p in payloads[i : i + batch]:
+                s.sendto(p, src.address)
+            deadline = time.monotonic() + 5
+            while src.datagrams < want and time.monotonic() < deadline:
+                time.sleep(0.001)
+            assert src.datagrams == want, "datagrams lost on loopback"
+
+
+def test_udp_loopback_by_default_and_garbage(gate):
+    rng = random.Random(5)
+    with UdpSource(gate) as src:
+        assert src.address[0] == "127.0.0.1" and src.address[1] > 0
+        _send(src, garbage(rng, 1000))
+        _send(src, [b"0.3 0 0.2"])
+        assert src.wait(5)
+        (t,) = src.drain()
+        np.testing.assert_allclose(t.position, [0.3, 0, 0.2])
+    assert src.closed
+    assert src.datagrams == 1001 and gate.rejects.total == 1000 and gate.accepted == 1
+
+
+def test_udp_oversize_datagram(gate):
+    with UdpSource(gate) as src:
+        _send(src, [b" " * 2000 + b"0.3 0 0.2", b"0.3 0 0.21"])
+        assert src.wait(5)
+        assert [t.position[2] for t in src.drain()] == [0.21]
+    assert src.rejects["oversize"] == 1
+
+
+def test_udp_non_loopback_warns(gate, caplog):
+    with caplog.at_level(logging.WARNING, logger="retarget.teleop_input"):
+        UdpSource(gate, "0.0.0.0", 0).close()
+    assert "NOT loopback" in caplog.text
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="retarget.teleop_input"):
+        UdpSource(gate, "127.0.0.1", 0).close()
+    assert caplog.text == ""
+
+
+def test_udp_bind_error(gate):
+    with UdpSource(gate) as src, pytest.raises(ConfigError, match="--udp: cannot bind UDP"):
+        UdpSource(gate, "127.0.0.1", src.address[1])
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ("9000", ("127.0.0.1", 9000)),
+        ("0.0.0.0:9000", ("0.0.0.0", 9000)),
+        ("[::1]:7", ("::1", 7)),
+        (":5", ("127.0.0.1", 5)),
+    ],
+    ids=["port", "host", "v6", "empty-host"],
+)
+def test_parse_address(text, expected):
+    assert parse_address(text) == expected
+
+
+@pytest.mark.parametrize(
+    ("text", "match"), [("x", "numeric"), ("1:2:3", "brackets"), ("70000", "0..65535")], ids=["word", "v6", "range"]
+)
+def test_parse_address_errors(text, match):
+    with pytest.raises(ConfigError, match=match):
+        parse_address(text)
+
+
+@pytest.mark.parametrize(
+    ("host", "loop"), [("127.0.0.1", True), ("::1", True), ("localhost", True), ("0.0.0.0", False), ("eth0", False)]
+)
+def test_is_loopback(host, loop):
+    assert is_loopback(host) is loop
+
+
+def test_step_toward():
+    a, b = np.zeros(3), np.array([3.0, 4.0, 0.0])
+    np.testing.assert_allclose(step_toward(a, b, 1.0), [0.6, 0.8, 0])
+    np.testing.assert_allclose(step_toward(a, b, 5.0), b)
+    np.testing.assert_allclose(step_toward(a, b, float("inf")), b)
+    rng = np.random.default_rng(0)
+    for _ in range(50):  # never farther than the limit, never overshoots
+        p, q, d = rng.normal(size=3), rng.normal(size=3), rng.uniform(0, 2)
+        s = step_toward(p, q, d)
+        assert np.linalg.norm(s - p) <= d + 1e-12
+        assert np.linalg.norm(q - s) <= np.linalg.norm(q - p) + 1e-12
