@@ -22,7 +22,7 @@ from collections.abc import Sequence
 from retarget.errors import BusError, RetargetError
 
 #: Subcommands in the order ``--help`` lists them.
-COMMANDS: tuple[str, ...] = ("replay", "export", "inspect", "scan", "sim")
+COMMANDS: tuple[str, ...] = ("replay", "export", "inspect", "arm", "scan", "sim")
 
 EXIT_OK = 0
 EXIT_USAGE = 2  #: bad input: a file, a config key, an option value
@@ -36,6 +36,8 @@ examples:
   retarget export clip.bvh -o t.csv    the retargeted joint trajectory as CSV, no bus
   retarget inspect clip.bvh            show the skeleton, frame rate and arm chains
   retarget inspect clip.bvh --json     the same as JSON on stdout
+  retarget arm vx300s                  an arm's joints, limits, servos and poses (--list: every bundled arm)
+  retarget arm wx250s --ik 0.35,0,0.25 solve IK for a point in the base frame
   retarget scan --port /dev/ttyUSB0    list the servos on a port: ID, model, firmware, baud
   retarget sim --tcp 127.0.0.1:4000    simulated servos of wx250s on loopback TCP (or a pty by default)
 
