@@ -640,8 +640,10 @@ def solve_ik(
     rotation: np.ndarray | None = None,
     tolerance: float = 1e-3,
     max_iterations: int = 100,
+    max_step: float | None = None,
     weights: Weighting | str | Sequence[float] | np.ndarray = Weighting.UNIFORM,
     weight_exponent: float = 2.0,
+    order: SweepOrder | str = SweepOrder.BASE_FIRST,
     orientation_weight: float = 0.1,
     orientation_tolerance: float = 1e-2,
     restarts: int = 16,
@@ -649,17 +651,28 @@ def solve_ik(
 ) -> IKResult:
     """Solve CCD IK on ``arm`` for ``target`` ``(3,)`` metres (base frame) from ``q0`` (default: home).
 
+    ``q0`` is ``(n_joints,)`` radians; ``rotation`` an optional ``(3, 3)`` tool orientation.
     See :class:`CCDSolver` for the knobs and the module docstring for the method.  The
     solver is built once per arm and set of knobs and cached on the arm, so calling this
     every tick costs little more than ``CCDSolver.solve``.
     """
-    key = ("ik", _freeze(weights), weight_exponent, orientation_weight, orientation_tolerance, restarts, seed)
+    key = (
+        "ik",
+        _freeze(weights),
+        weight_exponent,
+        str(order),
+        orientation_weight,
+        orientation_tolerance,
+        restarts,
+        seed,
+    )
     solver = arm._cache.get(key)
     if solver is None:
         solver = arm._cache[key] = CCDSolver(
             arm,
             weights=weights,
             weight_exponent=weight_exponent,
+            order=order,
             orientation_weight=orientation_weight,
             orientation_tolerance=orientation_tolerance,
             restarts=restarts,
@@ -667,7 +680,7 @@ def solve_ik(
         )
     if q0 is None:
         q0 = arm.home_pose
-    return solver.solve(target, q0, rotation, tolerance=tolerance, max_iterations=max_iterations)
+    return solver.solve(target, q0, rotation, tolerance=tolerance, max_iterations=max_iterations, max_step=max_step)
 
 
 # -- float helpers ------------------------------------------------------------------------------------------------
