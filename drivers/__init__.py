@@ -8,7 +8,7 @@ Lazy exports, so ``import drivers`` stays cheap (the SDK and pyserial load on fi
 
 Modules: ``control_table`` (registers as data), ``units`` (radians <-> ticks), ``port`` (PortHandler on any
 pyserial URL), ``comm`` (transactions with retries), ``dynamixel_bus`` (the arm's bus), ``latency`` (FTDI
-latency timer), ``scan`` (find servos on a port).
+latency timer), ``scan`` (find servos on a port), ``servo_plan`` (per-servo limits and settings).
 """
 
 from __future__ import annotations
@@ -18,8 +18,10 @@ from typing import Any
 
 _LAZY = {
     "DynamixelBus": "drivers.dynamixel_bus",
-    "Profile": "drivers.dynamixel_bus",
-    "ServoPlan": "drivers.dynamixel_bus",
+    "Profile": "drivers.servo_plan",
+    "ServoPlan": "drivers.servo_plan",
+    "ServoSettings": "drivers.servo_plan",
+    "plan_servos": "drivers.servo_plan",
     "ShutdownMode": "retarget.bus",
     "UrlPortHandler": "drivers.port",
     "open_port": "drivers.port",

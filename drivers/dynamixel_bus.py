@@ -25,11 +25,9 @@ the other way.  Tick limits are therefore computed in that register space for ev
 
 from __future__ import annotations
 
-import enum
 import logging
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 from types import TracebackType
 from typing import TYPE_CHECKING
 
@@ -37,13 +35,13 @@ import numpy as np
 
 from drivers import units
 from drivers.comm import Link
-from drivers.control_table import MODEL_BY_NUMBER, DriveMode, Model, OperatingMode, hardware_error_names
-from drivers.control_table import model as lookup_model
+from drivers.control_table import MODEL_BY_NUMBER, hardware_error_names
 from drivers.latency import check_latency_timer
 from drivers.port import open_port
+from drivers.servo_plan import MAX_PROFILE_MS, Profile, ServoPlan, ServoSettings, plan_servos
 from retarget.bus import BusStatus, ShutdownMode
 from retarget.clock import Clock, MonotonicClock
-from retarget.errors import BusError, ConfigError
+from retarget.errors import BusError
 
 if TYPE_CHECKING:
     from retarget.arm import Arm
@@ -53,68 +51,6 @@ log = logging.getLogger(__name__)
 #: EEPROM block read once per servo at connect: Return Delay Time (9) .. Min Position Limit (52..55).
 _EEPROM_START = 9
 _EEPROM_END = 56
-
-
-class Profile(enum.Enum):
-    """How the servo shapes each move toward a new goal (Drive Mode bit 2)."""
-
-    VELOCITY = "velocity"  #: Profile Velocity/Acceleration are a rate cap (0.229 rpm, 214.577 rev/min^2)
-    TIME = "time"  #: Profile Velocity/Acceleration are the move's duration and ramp time (ms)
-
-
-@dataclass(frozen=True)
-class ServoPlan:
-    """One servo of the arm as the bus drives it: where it sits and what it is configured to."""
-
-    id: int
-    model: Model
-    role: str  #: "primary", "shadow" or "gripper"
-    joint: int  #: index into the arm's joints; -1 for the gripper
-    offset: int  #: ticks: the joint's 0 rad is at 2048 + offset
-    direction: int  #: +1 or -1, written to Drive Mode bit 0
-    min_tick: int  #: Min Position Limit
-    max_tick: int  #: Max Position Limit
-
-
-def _tick_limits(lower: float, upper: float, offset: int, *, where: str) -> tuple[int, int]:
-    lo = math.ceil(units.CENTER_TICK + offset + lower / units.RAD_PER_TICK - 1e-6)
-    hi = math.floor(units.CENTER_TICK + offset + upper / units.RAD_PER_TICK + 1e-6)
-    lo, hi = max(lo, units.MIN_TICK), min(hi, units.MAX_TICK)
-    if lo >= hi:
-        raise ConfigError(
-            "joint limits do not fit the servo's single-turn range 0..4095 ticks", key=where, value=(lower, upper)
-        )
-    return lo, hi
-
-
-def plan_servos(arm: Arm) -> tuple[ServoPlan, ...]:
-    """Every servo of ``arm`` (joints in order, primary then shadows, then the gripper) with its tick limits."""
-    plans: list[ServoPlan] = []
-    for j, joint in enumerate(arm.joints):
-        for k, servo in enumerate(joint.servos):
-            where = f"joints[{j}].servos[{k}]"
-            try:
-                model = lookup_model(servo.model)
-            except KeyError as exc:
-                raise ConfigError(str(exc.args[0]), path=arm.source, key=f"{where}.model", value=servo.model) from exc
-            lo, hi = _tick_limits(joint.lower, joint.upper, servo.offset, where=f"joints[{j}].limits")
-            role = "primary" if k == 0 else "shadow"
-            plans.append(ServoPlan(servo.id, model, role, j, servo.offset, servo.direction, lo, hi))
-    if arm.gripper is not None:
-        g = arm.gripper
-        try:
-            model = lookup_model(g.servo.model)
-        except KeyError as exc:
-            key = "gripper.servo.model"
-            raise ConfigError(str(exc.args[0]), path=arm.source, key=key, value=g.servo.model) from exc
-        lo, hi = _tick_limits(g.lower, g.upper, g.servo.offset, where="gripper.limits")
-        plans.append(ServoPlan(g.servo.id, model, "gripper", -1, g.servo.offset, g.servo.direction, lo, hi))
-    seen: set[int] = set()
-    for p in plans:
-        if p.id in seen:
-            raise ConfigError("servo ID used twice", path=arm.source, key="servos", value=p.id)
-        seen.add(p.id)
-    return tuple(plans)
 
 
 class DynamixelBus:
@@ -184,10 +120,14 @@ class DynamixelBus:
         if not rest_speed > 0:
             raise ValueError(f"Expected rest_speed > 0 rad/s, got {rest_speed}")
         self.retries = retries
-        self.return_delay_us = return_delay_us
-        self.profile_velocity = profile_velocity
-        self.profile_acceleration = profile_acceleration
-        self.profile_time = profile_time
+        self.settings = ServoSettings(
+            profile=self.profile,
+            profile_velocity=profile_velocity,
+            profile_acceleration=profile_acceleration,
+            profile_time=profile_time,
+            dt=dt,
+            return_delay_us=return_delay_us,
+        )
         self.dt = dt
         self.step_limit = step_limit
         self.rest_speed = rest_speed
@@ -222,6 +162,7 @@ class DynamixelBus:
         self.max_step = arm.max_velocity * dt if dt is not None and step_limit else None
 
         self._link: Link | None = None
+        self._last_link: Link | None = None  #: keeps the counters readable after close
         self._torque = False
         self._faulted: str | None = None
         self._last_goal: np.ndarray | None = None
@@ -263,7 +204,7 @@ class DynamixelBus:
         if self.connected:
             return
         port = open_port(self.port_name, self.baud)
-        self._link = Link(port, retries=self.retries)
+        self._link = self._last_link = Link(port, retries=self.retries)
         self._faulted = None
         self._hardware_errors = {}
         self._ticks = 0
@@ -275,15 +216,9 @@ class DynamixelBus:
                 self._configure(s)
             self.set_torque(True)
         except BaseException:
-            # nothing was enabled unless set_torque ran; either way leave the servos limp and the port free
-            torque = self._torque
-            try:
-                if torque:
-                    self._torque_off_all()
-            finally:
-                port.closePort()
-                self._link = None
-                self._torque = False
+            # set_torque is all or nothing, so no servo is left under torque: just free the port
+            port.closePort()
+            self._link = None
             raise
         log.info(
             "connected %s on %s at %d baud (%d servos)", self.arm.name, self.port_name, self.baud, len(self.servos)
@@ -318,9 +253,10 @@ class DynamixelBus:
             raise interrupted
 
     def status(self) -> BusStatus:
-        link = self._link
+        """Counters since the last connect (still readable after close)."""
+        link = self._link or self._last_link
         return BusStatus(
-            connected=link is not None,
+            connected=self._link is not None,
             ticks=self._ticks,
             retries=0 if link is None else link.retry_count,
             errors=0 if link is None else link.error_count,
@@ -508,40 +444,10 @@ class DynamixelBus:
         capable = all(self._firmware[s.id] >= s.model.fast_read_min_firmware for s in self._joint_servos)
         self._use_fast = (capable and len(addresses) == 1) if self.fast_read is None else bool(self.fast_read)
 
-    def _wanted(self, s: ServoPlan) -> tuple[dict[str, int], dict[str, int]]:
-        """The EEPROM and RAM register values ``s`` should hold."""
-        reg_max = s.model.register("Velocity Limit").maximum or 1023
-        if s.role == "gripper":
-            max_velocity = float(np.max(self.arm.max_velocity))
-        else:
-            max_velocity = float(self.arm.joints[s.joint].max_velocity)
-        velocity_limit = int(min(units.rad_s_to_velocity_units(max_velocity), reg_max))
-        drive = DriveMode.REVERSE if s.direction < 0 else DriveMode(0)
-        if self.profile is Profile.TIME:
-            drive |= DriveMode.TIME_BASED_PROFILE
-            duration = self.profile_time if self.profile_time is not None else (self.dt or 0.1)
-            pv = int(min(units.seconds_to_ms(duration), 32737))
-            pa = pv // 4
-        else:
-            speed = max_velocity if self.profile_velocity is None else min(self.profile_velocity, max_velocity)
-            pv = int(min(units.rad_s_to_velocity_units(speed), velocity_limit))
-            pa = int(units.rad_s2_to_accel_units(self.profile_acceleration or 0.0))
-        eeprom = {
-            "Operating Mode": int(OperatingMode.POSITION),
-            "Drive Mode": int(drive),
-            "Homing Offset": 0,
-            "Max Position Limit": s.max_tick,
-            "Min Position Limit": s.min_tick,
-            "Velocity Limit": velocity_limit,
-            "Return Delay Time": self.return_delay_us // 2,
-        }
-        ram = {"Profile Acceleration": pa, "Profile Velocity": pv}
-        return eeprom, ram
-
     def _configure(self, s: ServoPlan) -> None:
         """Write what differs, EEPROM first with torque off (the EEPROM rule), then the RAM profile."""
         link = self.link
-        eeprom, ram = self._wanted(s)
+        eeprom, ram = self.settings.registers(s, self.arm)
         block = link.read(s.id, _EEPROM_START, _EEPROM_END - _EEPROM_START, what="the EEPROM settings").data
         changes = {}
         for name, value in eeprom.items():
@@ -601,7 +507,7 @@ class DynamixelBus:
         present = self._read_positions_unchecked()
         if self.profile is Profile.TIME:
             duration = float(np.max(np.abs(rest - present))) / self.rest_speed
-            pv = int(min(units.seconds_to_ms(duration), 32737))
+            pv = int(min(units.seconds_to_ms(duration), MAX_PROFILE_MS))
             values = dict.fromkeys((s.id for s in self._joint_servos), pv)
             accel = dict.fromkeys(values, pv // 4)
             link.sync_write(108, 4, {i: _u32(v) for i, v in accel.items()})

@@ -351,11 +351,13 @@ def test_closed_bus_refuses_calls(make_bus, url):
         with pytest.raises(BusError, match="not connected"):
             call()
     bus.connect()
+    bus.read_positions()
     bus.close()
     bus.close()  # idempotent
     with pytest.raises(BusError, match="not connected"):
         bus.read_positions()
     assert bus.status().connected is False
+    assert bus.status().ticks == 1  # counters stay readable after close
 
 
 # ---------------------------------------------------------------------------------------------- options

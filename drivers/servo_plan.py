@@ -1,0 +1,133 @@
+"""What each servo of an arm is configured to: its role, tick limits and the register values the bus writes.
+
+:func:`plan_servos` turns an arm description into one :class:`ServoPlan` per servo (joints in order, primary
+then shadows, then the gripper), with the Min/Max Position Limit in ticks.  :class:`ServoSettings` holds
+the bus options that become register values, and :meth:`ServoSettings.registers` lists them per servo,
+EEPROM first (written with torque off) then RAM.
+
+Ticks are in the servo's register space, where Drive Mode bit 0 already reverses the shaft: every servo of
+a joint holds ``2048 + offset + q / RAD_PER_TICK``, so the limits use the offset and never the direction.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from drivers import units
+from drivers.control_table import DriveMode, Model, OperatingMode
+from drivers.control_table import model as lookup_model
+from retarget.errors import ConfigError
+
+if TYPE_CHECKING:
+    from retarget.arm import Arm
+
+MAX_PROFILE_MS = 32737  #: the largest Profile Velocity of a time-based profile
+
+
+class Profile(enum.Enum):
+    """How the servo shapes each move toward a new goal (Drive Mode bit 2)."""
+
+    VELOCITY = "velocity"  #: Profile Velocity/Acceleration are a rate cap (0.229 rpm, 214.577 rev/min^2)
+    TIME = "time"  #: Profile Velocity/Acceleration are the move's duration and ramp time (ms)
+
+
+@dataclass(frozen=True)
+class ServoPlan:
+    """One servo of the arm as the bus drives it: where it sits and what it is configured to."""
+
+    id: int
+    model: Model
+    role: str  #: "primary", "shadow" or "gripper"
+    joint: int  #: index into the arm's joints; -1 for the gripper
+    offset: int  #: ticks: the joint's 0 rad is at 2048 + offset
+    direction: int  #: +1 or -1, written to Drive Mode bit 0
+    min_tick: int  #: Min Position Limit
+    max_tick: int  #: Max Position Limit
+
+
+def tick_limits(lower: float, upper: float, offset: int = 0, *, where: str = "limits") -> tuple[int, int]:
+    """Min/Max Position Limit (ticks) inside ``[lower, upper]`` rad and the single-turn range 0..4095."""
+    lo = math.ceil(units.CENTER_TICK + offset + lower / units.RAD_PER_TICK - 1e-6)
+    hi = math.floor(units.CENTER_TICK + offset + upper / units.RAD_PER_TICK + 1e-6)
+    lo, hi = max(lo, units.MIN_TICK), min(hi, units.MAX_TICK)
+    if lo >= hi:
+        raise ConfigError(
+            "joint limits do not fit the servo's single-turn range 0..4095 ticks", key=where, value=(lower, upper)
+        )
+    return lo, hi
+
+
+def plan_servos(arm: Arm) -> tuple[ServoPlan, ...]:
+    """Every servo of ``arm`` (joints in order, primary then shadows, then the gripper) with its tick limits."""
+    plans: list[ServoPlan] = []
+    for j, joint in enumerate(arm.joints):
+        for k, servo in enumerate(joint.servos):
+            where = f"joints[{j}].servos[{k}]"
+            try:
+                model = lookup_model(servo.model)
+            except KeyError as exc:
+                raise ConfigError(str(exc.args[0]), path=arm.source, key=f"{where}.model", value=servo.model) from exc
+            lo, hi = tick_limits(joint.lower, joint.upper, servo.offset, where=f"joints[{j}].limits")
+            role = "primary" if k == 0 else "shadow"
+            plans.append(ServoPlan(servo.id, model, role, j, servo.offset, servo.direction, lo, hi))
+    if arm.gripper is not None:
+        g = arm.gripper
+        try:
+            model = lookup_model(g.servo.model)
+        except KeyError as exc:
+            key = "gripper.servo.model"
+            raise ConfigError(str(exc.args[0]), path=arm.source, key=key, value=g.servo.model) from exc
+        lo, hi = tick_limits(g.lower, g.upper, g.servo.offset, where="gripper.limits")
+        plans.append(ServoPlan(g.servo.id, model, "gripper", -1, g.servo.offset, g.servo.direction, lo, hi))
+    seen: set[int] = set()
+    for p in plans:
+        if p.id in seen:
+            raise ConfigError("servo ID used twice", path=arm.source, key="servos", value=p.id)
+        seen.add(p.id)
+    return tuple(plans)
+
+
+@dataclass(frozen=True)
+class ServoSettings:
+    """The bus options that become register values (see ``DynamixelBus`` for their meaning)."""
+
+    profile: Profile = Profile.VELOCITY
+    profile_velocity: float | None = None  #: rad/s (VELOCITY); None: the joint's max velocity; 0: no cap
+    profile_acceleration: float | None = None  #: rad/s^2 (VELOCITY); None or 0: unlimited
+    profile_time: float | None = None  #: s per move (TIME); None: ``dt`` or 0.1 s
+    dt: float | None = None  #: the control tick period, s
+    return_delay_us: int = 0
+
+    def registers(self, s: ServoPlan, arm: Arm) -> tuple[dict[str, int], dict[str, int]]:
+        """``(eeprom, ram)``: register name -> value for servo ``s``; EEPROM in the order to write it."""
+        reg_max = s.model.register("Velocity Limit").maximum or 1023
+        if s.role == "gripper":
+            max_velocity = float(np.max(arm.max_velocity))
+        else:
+            max_velocity = float(arm.joints[s.joint].max_velocity)
+        velocity_limit = int(min(units.rad_s_to_velocity_units(max_velocity), reg_max))
+        drive = DriveMode.REVERSE if s.direction < 0 else DriveMode(0)
+        if self.profile is Profile.TIME:
+            drive |= DriveMode.TIME_BASED_PROFILE
+            duration = self.profile_time if self.profile_time is not None else (self.dt or 0.1)
+            pv = int(min(units.seconds_to_ms(duration), MAX_PROFILE_MS))
+            pa = pv // 4  # the ramp may not exceed half the move
+        else:
+            speed = max_velocity if self.profile_velocity is None else min(self.profile_velocity, max_velocity)
+            pv = int(min(units.rad_s_to_velocity_units(speed), velocity_limit))
+            pa = int(units.rad_s2_to_accel_units(self.profile_acceleration or 0.0))
+        eeprom = {  # Operating Mode first: changing it resets the profile registers
+            "Operating Mode": int(OperatingMode.POSITION),
+            "Drive Mode": int(drive),
+            "Homing Offset": 0,  # the arm description's offset is the one calibration
+            "Max Position Limit": s.max_tick,
+            "Min Position Limit": s.min_tick,
+            "Velocity Limit": velocity_limit,
+            "Return Delay Time": self.return_delay_us // 2,
+        }
+        return eeprom, {"Profile Acceleration": pa, "Profile Velocity": pv}
