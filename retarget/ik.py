@@ -660,7 +660,7 @@ def solve_ik(
         "ik",
         _freeze(weights),
         weight_exponent,
-        str(order),
+        order.value if isinstance(order, SweepOrder) else order,
         orientation_weight,
         orientation_tolerance,
         restarts,
