@@ -227,6 +227,7 @@ class CCDSolver:
         self.lower = tuple(float(j.lower) for j in arm.joints)
         self.upper = tuple(float(j.upper) for j in arm.joints)
         self._lo, self._hi = self.lower, self.upper  # the bounds of the current solve
+        self._carried: tuple[float, float, float] = (0.0, 0.0, 0.0)  # tool point after a full base-first sweep
         # per joint: origin translation, origin rotation (None when identity), axis, principal kind/sign
         joints = []
         for j in arm.joints:
@@ -366,14 +367,16 @@ class CCDSolver:
         sweep = self._sweep_forward if self.order is SweepOrder.BASE_FIRST else self._sweep
         stall = self.stall_ratio
         accel = self.accel_ratio
-        fresh: tuple | None = f  # the pivot/axis buffers hold the forward pass of q
+        carried = self.order is SweepOrder.BASE_FIRST  # a full base-first sweep leaves the buffers current
+        fresh: tuple | None = f  # the pivot/axis buffers hold the forward pass of q, f[:3] the tool point
         while sweeps < budget:
             sweeps += 1
             before = q[:]
             err2 = sweep(q, tx, ty, tz, tol2, fresh)
-            fresh = None
+            fresh = self._carried if carried else None
             if err2 > tol2 and err2 > prev2 * accel:  # slow progress: extrapolate along the sweep's step
                 err2 = self._extrapolate(q, before, err2, tx, ty, tz)
+                fresh = None
             if err2 < best2:
                 best_q, best2 = q[:], err2
                 if err2 <= tol2:
@@ -532,6 +535,7 @@ class CCDSolver:
                 ax[i] = wx * c + (ky * wz - kz * wy) * s + kx * m
                 ay[i] = wy * c + (kz * wx - kx * wz) * s + ky * m
                 az[i] = wz * c + (kx * wy - ky * wx) * s + kz * m
+        self._carried = (ex, ey, ez)
         dx, dy, dz = ex - tx, ey - ty, ez - tz
         return dx * dx + dy * dy + dz * dz
 
