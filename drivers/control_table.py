@@ -239,9 +239,11 @@ class Model:
     fast_read_min_firmware: int = 45  #: FAST_SYNC_READ / FAST_BULK_READ need at least this firmware
     table_size: int = 662  #: bytes of control-table memory (highest address + 1)
     _by_address: Mapping[int, Register] = field(init=False, repr=False, compare=False)
+    _covering: dict[tuple[int, int], tuple[Register, ...]] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "_by_address", MappingProxyType({r.address: r for r in self.registers.values()}))
+        object.__setattr__(self, "_covering", {})
 
     @property
     def fast_sync_read(self) -> bool:
@@ -266,10 +268,18 @@ class Model:
 
     def covering(self, address: int, length: int) -> list[Register]:
         """Registers overlapping ``[address, address + length)``, by address."""
-        end = address + length
-        return sorted(
-            (r for r in self.registers.values() if r.address < end and address < r.end), key=lambda r: r.address
-        )
+        key = (address, length)
+        found = self._covering.get(key)
+        if found is None:
+            end = address + length
+            found = tuple(
+                sorted(
+                    (r for r in self.registers.values() if r.address < end and address < r.end), key=lambda r: r.address
+                )
+            )
+            if len(self._covering) < 4096:
+                self._covering[key] = found
+        return list(found)
 
     def defaults(self) -> bytearray:
         """The control-table memory after a factory reset: ``table_size`` bytes, every default encoded."""

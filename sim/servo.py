@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import logging
 import math
+import struct
 from collections.abc import Callable
 
 from drivers.control_table import (
@@ -58,6 +59,7 @@ from retarget.clock import Clock, MonotonicClock
 from sim.profile import Profile, ramp_profile, rest, time_profile, velocity_profile
 
 log = logging.getLogger(__name__)
+_I16, _U16, _I32 = struct.Struct("<h"), struct.Struct("<H"), struct.Struct("<i")
 
 PULSES_PER_S_PER_VELOCITY_UNIT = RPM_PER_VELOCITY_UNIT / 60.0 * PULSES_PER_REV  #: ~15.63
 PULSES_PER_S2_PER_ACCEL_UNIT = RPM2_PER_ACCEL_UNIT / 3600.0 * PULSES_PER_REV  #: ~244.1
@@ -92,10 +94,12 @@ class SimServo:
         self.model: Model = lookup_model(model) if isinstance(model, str | int) else model
         self.clock: Clock = clock if clock is not None else MonotonicClock()
         self.boot_time = float(boot_time)
-        self.ambient_temperature = float(temperature)
-        self.input_voltage = self.model.nominal_voltage  #: volts, what Present Input Voltage reports
+        self._ambient = float(temperature)
+        self._voltage = self.model.nominal_voltage
         self._mem = self.model.defaults()
         self._regs = self.model.registers
+        self._no_load = self.model.no_load_rpm / 60.0 * PULSES_PER_REV  #: pulses/s
+        self._fresh: float | None = None  #: clock time the Present items were last computed for
         self._set("ID", dxl_id)
         if baud is not None:
             if baud not in BAUD_CODES:
@@ -156,6 +160,26 @@ class SimServo:
         """The ERR byte of a status packet: ``error`` plus the Alert bit while a hardware error is set."""
         return error | (ALERT_BIT if self._mem[70] else 0)
 
+    @property
+    def ambient_temperature(self) -> float:
+        """degC the servo reads at rest (Present Temperature adds a little with load)."""
+        return self._ambient
+
+    @ambient_temperature.setter
+    def ambient_temperature(self, value: float) -> None:
+        self._ambient = float(value)
+        self._fresh = None
+
+    @property
+    def input_voltage(self) -> float:
+        """Volts, what Present Input Voltage reports."""
+        return self._voltage
+
+    @input_voltage.setter
+    def input_voltage(self, value: float) -> None:
+        self._voltage = float(value)
+        self._fresh = None
+
     # ------------------------------------------------------------------ availability (faults)
 
     def unplug(self, at: float | None = None) -> None:
@@ -181,6 +205,7 @@ class SimServo:
         self._raise_hardware_error(int(bits))
 
     def _raise_hardware_error(self, bits: int) -> None:
+        self._fresh = None
         self._mem[70] |= bits
         if bits & HardwareError.OVERHEATING:
             self.ambient_temperature = max(self.ambient_temperature, self._get("Temperature Limit") + 3)
@@ -208,16 +233,19 @@ class SimServo:
 
     def set(self, name: str, value: int) -> None:
         """Store ``value`` in register ``name`` bypassing every check (test setup; Present items are recomputed)."""
-        self.update()
         self.model.register(name)
+        self.update()
         self._set(name, value)
+        self._fresh = None
 
     def set_position(self, present: float) -> None:
         """Teleport: make Present Position read ``present`` now, at rest."""
+        self._fresh = None
         self.update()
         actual = self._actual_from_present(present)
         self._profile = rest(actual)
         self._state = (actual, 0.0, 0.0)
+        self._fresh = None
         self.update()
 
     @property
@@ -274,6 +302,7 @@ class SimServo:
         self._profile = ramp_profile(self._t, p, v, goal_v, pa * PULSES_PER_S2_PER_ACCEL_UNIT if pa > 0 else math.inf)
 
     def _torque_on(self) -> None:
+        self._fresh = None
         self._mem[64] = 1
         present = round(self._present_from_actual(self._state[0]))
         self._set("Goal Position", max(-1_048_575, min(1_048_575, present)))
@@ -283,17 +312,20 @@ class SimServo:
             self._plan_velocity()
 
     def _torque_off(self) -> None:
+        self._fresh = None
         self._mem[64] = 0
         self._profile = rest(self._state[0])
         self._state = (self._state[0], 0.0, 0.0)
 
     def update(self, now: float | None = None) -> None:
         """Bring motion, faults and every Present item up to ``now`` (default ``clock.now()``)."""
-        now = self.clock.now() if now is None else float(now)
+        now = max(self.clock.now() if now is None else float(now), self._t)
         while self._scheduled_errors and self._scheduled_errors[0][0] <= now:
             at, bits = self._scheduled_errors.pop(0)
             self._advance(at)
             self._raise_hardware_error(bits)
+        if now == self._fresh:
+            return  # nothing moved or changed since the last refresh
         self._advance(now)
         self._refresh_present(now)
 
@@ -305,41 +337,43 @@ class SimServo:
         self._t = now
 
     def _refresh_present(self, now: float) -> None:
+        mem = self._mem
         p, v, a = self._state
-        sign = -1.0 if self._reverse else 1.0
-        present = self._present_from_actual(p)
-        moving_profile = bool(self._mem[64]) and not self._profile.done(now)
-        velocity_units = sign * v / PULSES_PER_S_PER_VELOCITY_UNIT
-        self._set("Present Position", max(-(2**31), min(2**31 - 1, round(present))))
-        self._set("Present Velocity", round(velocity_units))
-        self._set("Position Trajectory", max(-(2**31), min(2**31 - 1, round(present))))
-        self._set("Velocity Trajectory", round(velocity_units))
-        threshold = self._get("Moving Threshold")
-        moving = moving_profile or abs(velocity_units) > threshold
-        self._mem[122] = 1 if moving else 0
-        in_position = not moving_profile and abs(self._get("Goal Position") - present) <= max(threshold, 1)
-        self._mem[123] = (
-            (1 if in_position and self._mem[64] else 0)
+        torque = mem[64]
+        sign = -1.0 if mem[10] & 0x01 else 1.0
+        homing = _I32.unpack_from(mem, 20)[0]
+        present = (PULSES_PER_REV - p if sign < 0 else p) + homing
+        moving_profile = bool(torque) and not self._profile.done(now)
+        velocity_units = round(sign * v / PULSES_PER_S_PER_VELOCITY_UNIT)
+        position = max(-(2**31), min(2**31 - 1, round(present)))
+        _I32.pack_into(mem, 128, velocity_units)
+        _I32.pack_into(mem, 132, position)
+        _I32.pack_into(mem, 136, velocity_units)
+        _I32.pack_into(mem, 140, position)
+        threshold = _I32.unpack_from(mem, 24)[0]
+        mem[122] = 1 if moving_profile or abs(velocity_units) > threshold else 0
+        in_position = not moving_profile and abs(_I32.unpack_from(mem, 116)[0] - present) <= max(threshold, 1)
+        mem[123] = (
+            (1 if in_position and torque else 0)
             | (2 if moving_profile else 0)
             | ((self._profile.shape & 3) << 4 if moving_profile else 0)
         )
-        self._set("Realtime Tick", int((now - self._t_origin) * 1000.0) % 32768)
-        load = self._load_share(v, a) * sign if self._mem[64] else 0.0
+        _U16.pack_into(mem, 120, int((now - self._t_origin) * 1000.0) % 32768)
+        load = self._load_share(v, a) * sign if torque else 0.0
         if self.model.current_unit_ma is None:
-            self._set("Present Load", round(max(-1.0, min(1.0, load)) * 1000))
+            _I16.pack_into(mem, 126, round(max(-1.0, min(1.0, load)) * 1000))
         else:
             ma = load * self.model.stall_current * 1000.0
-            self._set("Present Current", round(ma / self.model.current_unit_ma))
-        no_load = self.model.no_load_rpm / 60.0 * PULSES_PER_REV
-        self._set("Present PWM", round(sign * v / no_load * 885) if self._mem[64] else 0)
-        self._set("Present Input Voltage", round(self.input_voltage * 10))
-        heat = 4.0 * abs(load)
-        self._set("Present Temperature", max(0, min(255, round(self.ambient_temperature + heat))))
+            _I16.pack_into(mem, 126, max(-32768, min(32767, round(ma / self.model.current_unit_ma))))
+        _I16.pack_into(mem, 124, round(sign * v / self._no_load * 885) if torque else 0)
+        _U16.pack_into(mem, 144, max(0, min(65535, round(self.input_voltage * 10))))
+        mem[146] = max(0, min(255, round(self.ambient_temperature + 4.0 * abs(load))))
         if self._indirect_used:
             self._refresh_indirect()
+        self._fresh = now
 
     def _load_share(self, v: float, a: float) -> float:
-        no_load = self.model.no_load_rpm / 60.0 * PULSES_PER_REV
+        no_load = self._no_load
         a_ref = no_load / 0.1
         direction = math.copysign(1.0, a) if a else math.copysign(1.0, v) if v else 1.0
         share = _HOLD_SHARE * direction + _ACCEL_SHARE * a / a_ref + _VELOCITY_SHARE * v / no_load
@@ -429,6 +463,7 @@ class SimServo:
 
     def reboot(self) -> None:
         """REBOOT (after its reply): RAM back to defaults, hardware error cleared, silent for ``boot_time``."""
+        self._fresh = None
         self.update()
         defaults = self.model.defaults()
         self._mem[EEPROM_END:] = defaults[EEPROM_END:]
@@ -444,6 +479,7 @@ class SimServo:
 
     def factory_reset(self, option: int) -> int:
         """FACTORY_RESET with option 0xFF (all), 0x01 (keep ID) or 0x02 (keep ID and baud); the error number."""
+        self._fresh = None
         if option not in tuple(FactoryReset):
             return StatusError.DATA_RANGE
         self.update()
@@ -462,6 +498,7 @@ class SimServo:
 
     def clear(self, params: bytes) -> int:
         """CLEAR 01 44 58 4C 22: reset the multi-turn count (Result Fail while moving)."""
+        self._fresh = None
         if bytes(params) != CLEAR_MULTI_TURN:
             return StatusError.DATA_RANGE
         self.update()
@@ -470,6 +507,7 @@ class SimServo:
         p = self._state[0] % PULSES_PER_REV
         self._profile = rest(p)
         self._state = (p, 0.0, 0.0)
+        self._fresh = None
         self.update()
         return StatusError.NONE
 
@@ -513,6 +551,7 @@ class SimServo:
         return StatusError.NONE, regs
 
     def _apply(self, address: int, data: bytes, regs: list[Register]) -> None:
+        self._fresh = None
         self.writes.append((self._t, address, data))
         indirect_writes: list[tuple[int, int]] = []
         effects: list[Callable[[], None]] = []

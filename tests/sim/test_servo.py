@@ -297,3 +297,12 @@ def test_load_follows_motion_seeded():
         assert (load > 0) == (goal > 2048)  # accelerating toward the goal
         clock.advance(30)
         assert s.get("Present Position") == goal
+
+
+def test_raw_set_and_attributes_take_effect_at_once(servo):
+    servo.get("Present Position")
+    servo.set("Homing Offset", 100)
+    assert servo.get("Present Position") == 2148
+    servo.input_voltage = 11.5
+    servo.ambient_temperature = 40
+    assert (servo.get("Present Input Voltage"), servo.get("Present Temperature")) == (115, 40)
