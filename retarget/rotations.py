@@ -61,6 +61,8 @@ def euler_to_matrix(angles: np.ndarray | Sequence[float], order: str) -> np.ndar
     axes = [_axis_index(ch) for ch in order]
     if a.ndim == 0 or a.shape[-1] != len(axes):
         raise ValueError(f"Expected angles of shape (..., {len(axes)}) for order {order!r}, got {a.shape}")
+    if not axes:
+        return np.broadcast_to(np.eye(3), a.shape[:-1] + (3, 3)).copy()
     cos, sin = np.cos(a), np.sin(a)
     return compose_cos_sin(axes, [cos[..., m] for m in range(len(axes))], [sin[..., m] for m in range(len(axes))])
 

@@ -1,0 +1,176 @@
+"""Forward kinematics of Motion against an independent per-frame 4x4 reference."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from retarget.bvh import parse_bvh
+from tests.retarget.bvh_text import POS_XYZ, J, bvh_text, joints_in_order, n_channels
+
+ORDERS = ["".join(p) for p in itertools.permutations("XYZ")]
+UNIT = {"X": np.array([1.0, 0, 0]), "Y": np.array([0, 1.0, 0]), "Z": np.array([0, 0, 1.0])}
+
+
+def rodrigues(axis: np.ndarray, angle: float) -> np.ndarray:
+    k = axis / np.linalg.norm(axis)
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+
+
+def reference_fk(root: J, frames: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """World rotations, joint positions and End Site positions, one frame and one joint at a time, from 4x4
+    homogeneous transforms: T_local = translate(offset with position channels substituted) @ rotations."""
+    joints = joints_in_order(root)
+    parent = {}
+    for j in joints:
+        for c in j.children:
+            parent[c.name] = j.name
+    n = len(frames)
+    rot = np.zeros((n, len(joints), 3, 3))
+    pos = np.zeros((n, len(joints), 3))
+    ends = []
+    for f in range(n):
+        col = 0
+        world: dict[str, np.ndarray] = {}
+        sites = []
+        for k, j in enumerate(joints):
+            t = np.array(j.offset, dtype=float)
+            R = np.eye(3)
+            for ch in j.channels:
+                value = frames[f, col]
+                col += 1
+                if ch.endswith("position"):
+                    t["XYZ".index(ch[0])] = value
+                else:
+                    R = R @ rodrigues(UNIT[ch[0]], np.radians(value))
+            T = np.eye(4)
+            T[:3, :3] = R
+            T[:3, 3] = t
+            W = world[parent[j.name]] @ T if j.name in parent else T
+            world[j.name] = W
+            rot[f, k] = W[:3, :3]
+            pos[f, k] = W[:3, 3]
+            if j.end is not None:
+                sites.append((W @ np.append(np.array(j.end, dtype=float), 1.0))[:3])
+        ends.append(sites)
+    return rot, pos, np.array(ends).reshape(n, -1, 3)
+
+
+def random_frames(root: J, n: int, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    out = []
+    for j in joints_in_order(root):
+        for ch in j.channels:
+            out.append(rng.uniform(-40, 40, n) if ch.endswith("position") else rng.uniform(-180, 180, n))
+    return np.array(out).T
+
+
+def chain(orders: list[str], *, six_channel_at: int | None = None) -> J:
+    """A root with 6 channels and a chain of joints with the given rotation orders."""
+    rng = np.random.default_rng(len(orders))
+    root = J("root", (1.0, 2.0, 3.0), ("Yposition", "Xposition", "Zposition", "Zrotation", "Xrotation", "Yrotation"))
+    parent = root
+    for k, order in enumerate(orders):
+        channels = tuple(f"{a}rotation" for a in order)
+        if k == six_channel_at:
+            channels = ("Zposition", "Xposition", "Yposition") + channels
+        joint = J(f"j{k}", tuple(rng.uniform(-10, 10, 3)), channels)
+        parent.children.append(joint)
+        parent = joint
+    parent.end = (0.0, 5.0, 1.0)
+    return root
+
+
+@pytest.mark.parametrize("order", ORDERS, ids=ORDERS)
+def test_fk_matches_reference_for_every_rotation_order(order):
+    root = chain([order] * 4)
+    for j in joints_in_order(root):
+        if len(j.channels) == 6:
+            j.channels = (*j.channels[:3], *(f"{a}rotation" for a in order))
+    frames = random_frames(root, 12, seed=ORDERS.index(order))
+    motion = parse_bvh(bvh_text(root, frames, fmt="{:.17g}"))
+    rot_ref, pos_ref, end_ref = reference_fk(root, frames)
+    rot, pos = motion.global_transforms()
+    np.testing.assert_allclose(pos, pos_ref, rtol=0, atol=1e-9 * np.abs(pos_ref).max())
+    np.testing.assert_allclose(rot, rot_ref, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(motion.end_site_positions(), end_ref, rtol=0, atol=1e-9 * np.abs(end_ref).max())
+
+
+def test_fk_mixed_orders_and_six_channel_joint_below_the_root():
+    root = chain(ORDERS + ["ZX", ""], six_channel_at=2)
+    frames = random_frames(root, 20, seed=11)
+    motion = parse_bvh(bvh_text(root, frames, fmt="{:.17g}"))
+    assert motion.layout[3].position_axes == "ZXY"
+    rot_ref, pos_ref, end_ref = reference_fk(root, frames)
+    rot, pos = motion.global_transforms()
+    np.testing.assert_allclose(pos, pos_ref, rtol=0, atol=1e-9 * np.abs(pos_ref).max())
+    np.testing.assert_allclose(rot, rot_ref, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(motion.end_site_positions(), end_ref, rtol=0, atol=1e-9 * np.abs(end_ref).max())
+
+
+def test_position_channels_replace_the_offset():
+    root = J("root", (100.0, 200.0, 300.0), (*POS_XYZ, "Zrotation"))
+    root.children.append(J("child", (0.0, 10.0, 0.0), ("Yposition", "Xrotation")))
+    frames = np.array([[1.0, 2.0, 3.0, 0.0, 7.0, 0.0]])
+    motion = parse_bvh(bvh_text(root, frames))
+    pos = motion.positions()
+    np.testing.assert_allclose(pos[0, 0], [1.0, 2.0, 3.0])  # not offset + channels
+    np.testing.assert_allclose(pos[0, 1], [1.0, 2.0 + 7.0, 3.0])  # Y replaced, X and Z kept from the OFFSET (0)
+
+
+def test_positions_only_then_full_transforms_agree():
+    root = chain(["ZXY", "YXZ", "XZY"])
+    frames = random_frames(root, 5, seed=2)
+    a = parse_bvh(bvh_text(root, frames))
+    b = parse_bvh(bvh_text(root, frames))
+    pos_first = a.positions().copy()
+    rot, pos = b.global_transforms()
+    np.testing.assert_array_equal(pos_first, pos)
+    assert a.positions() is a.positions()  # cached
+    np.testing.assert_array_equal(a.global_transforms()[0], rot)
+
+
+def test_results_are_read_only():
+    motion = parse_bvh(bvh_text(chain(["ZXY"]), random_frames(chain(["ZXY"]), 3, seed=0)))
+    for array in (motion.positions(), motion.global_transforms()[0], motion.channels, motion.parents, motion.offsets):
+        with pytest.raises(ValueError, match="read-only"):
+            array[...] = 0
+
+
+def test_zero_frames_give_empty_arrays():
+    root = chain(["ZXY", "XYZ"])
+    motion = parse_bvh(bvh_text(root, np.zeros((0, n_channels(root)))))
+    assert motion.n_frames == 0 and motion.duration == 0.0
+    assert motion.positions().shape == (0, 3, 3)
+    assert motion.global_transforms()[0].shape == (0, 3, 3, 3)
+    assert motion.end_site_positions().shape == (0, 1, 3)
+
+
+def test_scaled_scales_every_length_and_keeps_angles():
+    root = chain(["ZXY", "YZX"], six_channel_at=1)
+    frames = random_frames(root, 6, seed=5)
+    motion = parse_bvh(bvh_text(root, frames))
+    half = motion.scaled(0.5)
+    np.testing.assert_allclose(half.positions(), motion.positions() * 0.5, atol=1e-12)
+    np.testing.assert_allclose(half.end_site_positions(), motion.end_site_positions() * 0.5, atol=1e-12)
+    np.testing.assert_allclose(half.global_transforms()[0], motion.global_transforms()[0], atol=1e-12)
+    with pytest.raises(ValueError, match="Expected a positive finite scale factor, got -1.0"):
+        motion.scaled(-1)
+
+
+def test_info_properties():
+    root = chain(["ZXY", "XYZ"])
+    motion = parse_bvh(bvh_text(root, np.zeros((90, n_channels(root))), frame_time=1 / 120), path="a/clip.bvh")
+    assert motion.n_frames == 90 and motion.n_joints == 3
+    assert motion.fps == pytest.approx(120.0)
+    assert motion.duration == pytest.approx(0.75)
+    assert motion.rotation_orders == ("ZXY", "ZXY", "XYZ")
+    assert motion.joint_index("j1") == 2
+    assert motion.children(0) == [1]
+    with pytest.raises(KeyError, match="Expected a joint name of this clip, got 'nope'"):
+        motion.joint_index("nope")
+    assert "clip.bvh" in repr(motion) and "90 frames" in repr(motion)
+    np.testing.assert_allclose(motion.rest_positions()[0], [1.0, 2.0, 3.0])
