@@ -51,6 +51,7 @@ class SimServer:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._pending: deque[Reply] = deque()
+        self._wake_r, self._wake_w = os.pipe()  #: close() writes here to end a select at once
 
     # subclasses: open resources in __init__/start, give the fd to poll, read, write, close
     def _fd(self) -> int | None:
@@ -68,9 +69,15 @@ class SimServer:
     def close(self) -> None:
         """Stop the loop (if running in a thread) and release the pty or socket.  Safe to call twice."""
         self._stop.set()
+        with contextlib.suppress(OSError):
+            os.write(self._wake_w, b"x")
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join(timeout=5)
         self._thread = None
+        for fd in (self._wake_r, self._wake_w):
+            with contextlib.suppress(OSError):
+                os.close(fd)
+        self._wake_r = self._wake_w = -1
 
     def start(self) -> Self:
         """Run :meth:`serve_forever` in a daemon thread."""
@@ -98,10 +105,10 @@ class SimServer:
             if self._pending:
                 timeout = 0.0 if virtual else min(_POLL, max(0.0, self._pending[0].due - clock.now()))
             try:
-                readable, _, _ = select.select([fd], [], [], timeout)
+                readable, _, _ = select.select([fd, self._wake_r], [], [], timeout)
             except (OSError, ValueError):  # closed under us
                 break
-            if readable:
+            if fd in readable:
                 data = self._recv()
                 if data:
                     self.bus.line_baud = self._line_baud()
@@ -177,8 +184,8 @@ class TcpServer(SimServer):
     def _fd(self) -> int | None:
         if self._client is not None:
             return self._client.fileno()
-        readable, _, _ = select.select([self._listener], [], [], _POLL)
-        if readable:
+        readable, _, _ = select.select([self._listener, self._wake_r], [], [], _POLL)
+        if self._listener in readable:
             with contextlib.suppress(BlockingIOError):
                 self._client, peer = self._listener.accept()
                 self._client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
