@@ -432,6 +432,12 @@ class _Source:
             return out
 
     @property
+    def queued(self) -> int:
+        """Accepted targets not drained yet."""
+        with self._cond:
+            return len(self._queue)
+
+    @property
     def closed(self) -> bool:
         """True once no more targets can come (end of input, or closed)."""
         with self._cond:
