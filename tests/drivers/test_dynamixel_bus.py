@@ -75,6 +75,7 @@ def test_connect_configures_every_servo_then_enables_torque(make_bus, transport_
     assert gripper.get("Torque Enable") == 1
     # enabling torque did not move anything: every joint still reads its starting (rest) pose
     np.testing.assert_allclose(bus.read_positions(), arm.rest, atol=units.RAD_PER_TICK)
+    bus.close()  # before the pty/TCP server goes away
 
 
 def test_eeprom_is_written_only_when_it_differs(make_bus, url, sim_bus):
@@ -144,15 +145,17 @@ def test_unknown_port_is_a_bus_error(make_bus):
 # ---------------------------------------------------------------------------------------------- goals
 
 
-def test_goals_round_trip_through_the_servos_seeded(make_bus, url, sim_bus, arm, clock):
-    bus = make_bus(url, shutdown=ShutdownMode.OFF)
+def test_goals_round_trip_through_the_servos_seeded(make_bus, transport_url, sim_bus, arm, clock):
+    bus = make_bus(transport_url, shutdown=ShutdownMode.OFF)
     bus.connect()
     rng = np.random.default_rng(42)
     for _ in range(5):
         q = rng.uniform(bus.lower, bus.upper)
         bus.write_goals(q)
+        bus.read_positions()  # a reply: over a pty or TCP the server has now taken the goal, at this clock time
         clock.advance(5.0)  # long enough for any move at pi rad/s
         np.testing.assert_allclose(bus.read_positions(), q, atol=units.RAD_PER_TICK / 2 + 1e-9)
+    bus.close()  # before the pty/TCP server goes away
 
 
 def test_shadows_are_mirrored_in_the_same_sync_write(make_bus, url, sim_bus, clock):

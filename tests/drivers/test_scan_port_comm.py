@@ -3,14 +3,21 @@
 from __future__ import annotations
 
 import json
+import os
+import signal
+import subprocess
+import sys
 
+import numpy as np
 import pytest
 
 import sim
 from drivers.comm import Link, comm_result_name, status_error_name
 from drivers.control_table import ALERT_BIT, HardwareError
+from drivers.dynamixel_bus import DynamixelBus
 from drivers.port import UrlPortHandler, open_port
 from drivers.scan import ALL_BAUDS, parse_ids, scan
+from retarget.bus import ShutdownMode
 from retarget.cli import main
 from retarget.errors import BusError, ConfigError
 
@@ -174,3 +181,31 @@ def test_cli_scan_errors(url, capsys, argv, status, message):
     assert main(["scan", "--port", url, *argv]) == status
     err = capsys.readouterr().err
     assert message in err and len(err.strip().splitlines()) <= 2  # progress line(s) + one error line
+
+
+@pytest.mark.pty
+@pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a POSIX pseudo-terminal")
+def test_out_of_process_sim_over_a_pty(arm):
+    """``retarget sim --pty`` in another process: scan it, then connect, move and close the arm through it."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "retarget", "sim", "--arm", "wx250s", "--pty", "--rdt", "0"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
+    try:
+        path = proc.stdout.readline().strip()
+        assert path.startswith("/dev/"), path
+        found = scan(path, (1_000_000,), (1, 2, 9), broadcast=False)
+        assert [(s.id, s.model) for s in found] == [(1, "XM430-W350"), (2, "XM430-W350"), (9, "XL430-W250")]
+        with DynamixelBus(arm, path, shutdown=ShutdownMode.OFF, check_latency=False) as bus:
+            bus.write_goals(np.zeros(6))
+            assert bus.read_positions().shape == (6,)
+            assert bus.status().errors == 0
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
