@@ -92,7 +92,7 @@ def build_bus(args: argparse.Namespace):
         hwerror=args.hwerror,
         wire=args.wire,
         seed=args.seed,
-        source="retarget sim",
+        source="",
     )
     clock = MonotonicClock()
     if args.ids is not None:
