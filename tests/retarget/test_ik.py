@@ -273,3 +273,35 @@ def test_solves_are_deterministic_and_solver_is_cached():
         assert (x.iterations, x.restarts) == (y.iterations, y.restarts)
     assert sum(isinstance(v, CCDSolver) for v in arm._cache.values()) == 1
     assert isinstance(a[0], IKResult)
+
+
+@pytest.mark.parametrize("order", ["tip-first", "base-first"])
+def test_short_lever_damping_keeps_the_forearm_roll_still(order):
+    """Wrist nearly straight: the tool sits almost on the forearm-roll axis.  Undamped tip-first CCD swings the
+    roll far for a 3 mm sideways step; the damped solver takes it with a small waist turn instead."""
+    arm = load_arm("wx250s")
+    q0 = np.array([0.0, 0.3, 0.2, 0.0, 0.02, 0.0])
+    target = tool(arm, q0) + [0.0, 0.003, 0.0]
+    undamped = CCDSolver(arm, short_lever=0, order="tip-first").solve(target, q0)
+    assert undamped.converged and abs(undamped.q[3] - q0[3]) > 0.3
+    damped = CCDSolver(arm, order=order).solve(target, q0)
+    assert damped.converged and np.abs(damped.q - q0).max() < 0.02
+
+
+def test_restarts_escape_limit_minima():
+    arm = load_arm("wx250s")
+    targets = random_targets(arm, 5, 100)
+    plain, default = CCDSolver(arm, restarts=0), CCDSolver(arm)
+    stuck = [t for t in targets if not plain.solve(t, arm.home).converged]
+    assert len(stuck) >= 3  # plain CCD (with the line search) still misses some
+    results = [default.solve(t, arm.home) for t in stuck]
+    assert all(r.converged and r.restarts > 0 for r in results)
+
+
+def test_line_search_speeds_up_crawling_sweeps():
+    arm = load_arm("wx250s")
+    targets = random_targets(arm, 6, 40)
+    with_search = [CCDSolver(arm).solve(t, arm.home) for t in targets]
+    without = [CCDSolver(arm, accel_ratio=0).solve(t, arm.home) for t in targets]
+    assert sum(r.iterations for r in with_search) * 2 < sum(r.iterations for r in without)
+    assert all(r.converged for r in with_search)
