@@ -72,7 +72,7 @@ class LoopConfig:
     loop: bool = False  #: wrap back to ``start`` after ``end``
     max_ticks: int | None = None  #: stop after this many ticks (needed to bound a ``loop`` run in tests)
     velocity_scale: float = 1.0  #: fraction of each joint's max velocity allowed per tick
-    ik_iterations: int = 20  #: IK sweeps per tick (the per-tick budget)
+    ik_iterations: int = 30  #: IK sweeps per tick (the per-tick budget; a warm tick needs 1-5)
     ik_tolerance: float = 1e-3  #: metres
     progress_every: float = 1.0  #: seconds of loop-clock time between progress callbacks
 

@@ -36,7 +36,7 @@ from __future__ import annotations
 import enum
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 from os import PathLike
 from typing import TYPE_CHECKING, Any
 
@@ -90,6 +90,7 @@ class Axis(enum.Enum):
 
 _FORWARD_CHOICES = ("auto", "+x", "-x", "+z", "-z", "+y", "-y")
 _UP_CHOICES = ("+y", "-y", "+z", "-z", "+x", "-x")
+_ROBOT_FORWARD_CHOICES = ("auto", "+x", "-x", "+y", "-y")
 
 
 @dataclass(frozen=True)
@@ -103,7 +104,9 @@ class MappingConfig:
     side: Side = Side.RIGHT  #: which human arm drives the robot
     forward: Axis = Axis.AUTO  #: body forward: AUTO = per frame from the torso; else a fixed BVH axis
     up: Axis = Axis.PY  #: BVH up axis, used with a fixed ``forward`` and for the hand orientation
-    arm_scale: float = 0.42  #: the human's full arm length maps to this fraction of the robot's reach
+    #: the robot's forward in its base frame: AUTO = where the arm points at home; or +x, -x, +y, -y
+    robot_forward: Axis = Axis.AUTO
+    arm_scale: float = 0.4  #: the human's full arm length maps to this fraction of the robot's reach
     origin: tuple[float, float, float] | None = None  #: where the shoulder lands; None = default_origin()
     max_reach: float = 0.95  #: outer radius of the workspace shell, fraction of reach
     min_reach: float = 0.2  #: inner radius, fraction of reach
@@ -158,8 +161,12 @@ class MappingConfig:
         return replace(self, **values)
 
     def default_origin(self, geometry: ArmGeometry) -> np.ndarray:
-        """``(3,)`` metres: 0.3 reach in front of and 0.32 reach above the shoulder pivot."""
-        return geometry.pivot + geometry.reach * np.array([0.3, 0.0, 0.32])
+        """``(3,)`` metres: 0.3 reach in front of and 0.38 reach above the shoulder pivot.
+
+        With the default ``arm_scale`` the human arm's sphere then fits inside the
+        workspace shell, and a hanging arm lands just above the floor in front of the robot.
+        """
+        return geometry.pivot + geometry.reach * (geometry.basis(self.robot_forward) @ np.array([0.3, 0.0, 0.38]))
 
 
 def _convert(name: str, raw: Any, *, key: str, path: str | PathLike[str] | None) -> Any:
@@ -167,13 +174,13 @@ def _convert(name: str, raw: Any, *, key: str, path: str | PathLike[str] | None)
     try:
         if name == "side":
             return raw if isinstance(raw, Side) else Side(str(raw).lower())
-        if name in ("forward", "up"):
+        if name in ("forward", "up", "robot_forward"):
             if isinstance(raw, Axis):
                 return raw
             text = str(raw).lower()
             if text in ("x", "y", "z"):
                 text = "+" + text
-            choices = _FORWARD_CHOICES if name == "forward" else _UP_CHOICES
+            choices = {"forward": _FORWARD_CHOICES, "up": _UP_CHOICES, "robot_forward": _ROBOT_FORWARD_CHOICES}[name]
             if text not in choices:
                 raise ValueError
             return Axis(text)
@@ -203,6 +210,7 @@ _EXPECTED = {
     "side": "'left' or 'right'",
     "forward": "one of " + ", ".join(_FORWARD_CHOICES),
     "up": "one of " + ", ".join(_UP_CHOICES),
+    "robot_forward": "one of " + ", ".join(_ROBOT_FORWARD_CHOICES),
     "arm_scale": "a number > 0",
     "origin": "three numbers x,y,z in metres",
     "max_reach": "a fraction in (0, 1]",
@@ -219,6 +227,8 @@ def _check(name: str, value: Any, *, key: str, path: str | PathLike[str] | None)
         ok = isinstance(value, Side)
     elif name in ("forward", "up"):
         ok = isinstance(value, Axis) and (name == "forward" or value is not Axis.AUTO)
+    elif name == "robot_forward":
+        ok = isinstance(value, Axis) and value.value in _ROBOT_FORWARD_CHOICES
     elif name == "origin":
         ok = value is None or (len(value) == 3 and all(math.isfinite(v) for v in value))
     elif name == "joint_weights":
@@ -246,6 +256,17 @@ class ArmGeometry:
 
     pivot: np.ndarray  #: ``(3,)`` the first joint whose axis differs from the base joint's (the shoulder)
     reach: float  #: sum of the link lengths from the pivot to the tool point
+    #: ``(3,)`` unit, horizontal: where the arm points at its home pose (+x for most arms, -x for the Koch URDF)
+    forward: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
+
+    def basis(self, robot_forward: Axis = Axis.AUTO) -> np.ndarray:
+        """``(3, 3)`` columns: the robot's forward, left and up (z) in its base frame.
+
+        ``robot_forward`` AUTO uses :attr:`forward`; ``+x``/``-x``/``+y``/``-y`` override it.
+        """
+        f = self.forward if robot_forward is Axis.AUTO else robot_forward.vector
+        up = np.array([0.0, 0.0, 1.0])
+        return np.stack([f, np.cross(up, f), up], axis=-1)
 
 
 def arm_geometry(arm: Arm) -> ArmGeometry:
@@ -262,7 +283,18 @@ def arm_geometry(arm: Arm) -> ArmGeometry:
             k = i
             break
     segments = np.diff(points[k:], axis=0)
-    return ArmGeometry(pivot=np.array(points[k], dtype=np.float64), reach=float(np.linalg.norm(segments, axis=1).sum()))
+    ahead = points[-1, :2] - points[0, :2]  # the tool seen from the base joint, horizontally
+    norm = float(np.linalg.norm(ahead))
+    forward = np.array([ahead[0] / norm, ahead[1] / norm, 0.0]) if norm > 1e-6 else np.array([1.0, 0.0, 0.0])
+    axis = int(np.argmax(np.abs(forward[:2])))
+    if abs(forward[axis]) > math.cos(math.radians(10)):  # a lateral link offset, not a turned base: snap
+        forward = np.zeros(3)
+        forward[axis] = math.copysign(1.0, ahead[axis])
+    return ArmGeometry(
+        pivot=np.array(points[k], dtype=np.float64),
+        reach=float(np.linalg.norm(segments, axis=1).sum()),
+        forward=forward,
+    )
 
 
 #: default IK weight of a roll joint (its axis runs through the tool point, so it barely moves it)
@@ -423,14 +455,18 @@ def map_points(
     *,
     scale: float,
     origin: np.ndarray,
+    basis: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Wrist relative to shoulder, in body ``frames``, scaled and offset: ``(n, 3)`` metres, base frame.
+    """Wrist relative to shoulder, in body ``frames``, scaled, turned and offset: ``(n, 3)`` metres, base frame.
 
     ``shoulder``/``wrist`` ``(n, 3)`` file units, BVH world; ``frames`` ``(n, 3, 3)`` or ``(3, 3)``
-    (columns forward, left, up); ``scale`` metres per file unit; ``origin`` ``(3,)`` metres.
+    (columns forward, left, up); ``scale`` metres per file unit; ``origin`` ``(3,)`` metres;
+    ``basis`` ``(3, 3)`` the robot's forward, left, up in its base frame (default identity: x, y, z).
     """
     rel = np.asarray(wrist, dtype=np.float64) - shoulder
-    local = np.einsum("...ji,...j->...i", frames, rel)  # frames^T @ rel: (forward, left, up) == robot (x, y, z)
+    local = np.einsum("...ji,...j->...i", frames, rel)  # frames^T @ rel: (forward, left, up)
+    if basis is not None:
+        local = local @ np.asarray(basis).T
     return local * scale + origin
 
 
@@ -547,10 +583,11 @@ def retarget_targets(motion: Motion, arm: Arm, config: MappingConfig | None = No
     geometry = arm_geometry(arm)
     scale = config.arm_scale * geometry.reach / float(human)
     origin = np.asarray(config.origin, dtype=np.float64) if config.origin else config.default_origin(geometry)
-    raw = map_points(shoulder, wrist, frames, scale=scale, origin=origin)
+    basis = geometry.basis(config.robot_forward)
+    raw = map_points(shoulder, wrist, frames, scale=scale, origin=origin, basis=basis)
     rotations = None
     if config.orientation_weight > 0:
-        rotations = _hand_rotations(motion, chain.names, frames, config)
+        rotations = basis @ _hand_rotations(motion, chain.names, frames, config)
     return Targets.from_raw(
         raw,
         frame_time=float(motion.frame_time),
@@ -562,7 +599,7 @@ def retarget_targets(motion: Motion, arm: Arm, config: MappingConfig | None = No
 
 
 def _hand_rotations(motion: Motion, names: tuple[str, ...], frames: np.ndarray, config: MappingConfig) -> np.ndarray:
-    """Tool orientations ``(n, 3, 3)`` in the base frame from the hand joint's global rotation.
+    """Tool orientations ``(n, 3, 3)`` in the body frame (forward, left, up) from the hand joint's global rotation.
 
     Tool x = the hand bone (the wrist's first child, else the forearm direction),
     tool z = the BVH up axis seen from the hand in the rest pose (rest rotations are identity).
