@@ -2,9 +2,13 @@
 
 An :class:`Arm` is a serial chain of revolute joints from the base frame to a
 tool point.  Angles are radians and lengths metres everywhere in code; the
-TOML files under ``config/arms/`` hold limits in degrees (see
-``retarget.arm_config``).  Instances are frozen: build them with
-``retarget.load_arm``.
+TOML files under ``config/arms/`` hold angles in degrees (see
+``retarget.arm_config``; URDF import in ``retarget.urdf``).  Instances are
+frozen: build them with ``retarget.load_arm``.
+
+    arm = retarget.load_arm("wx250s")
+    T, points = arm.fk(arm.home)    # (4, 4) tool pose, (n_joints + 1, 3) joint origins + tool, metres
+    arm.lower, arm.upper            # (n_joints,) radians
 """
 
 from __future__ import annotations
@@ -92,6 +96,16 @@ class Arm:
     title: str = ""  #: human name, e.g. "WidowX-250 6DOF"
     #: private per-instance cache (precomputed kinematic chain, IK solvers); not part of equality
     _cache: dict[str, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        n = len(self.joints)
+        if len(self.home_pose) != n or len(self.rest_pose) != n:
+            raise ValueError(
+                f"Expected home and rest poses of {n} angles, got {len(self.home_pose)} and {len(self.rest_pose)}"
+            )
+        for j in self.joints:
+            if not j.lower < j.upper:
+                raise ValueError(f"Expected lower < upper for joint {j.name!r}, got {j.lower} and {j.upper}")
 
     @property
     def n_joints(self) -> int:
