@@ -265,13 +265,13 @@ class SimBus:
             if self.crc_error_reply and target.status_return_level >= 2:
                 return [(target, build_status(target.id, target.error_byte(StatusError.CRC)))]
             return []
-        error, data, reboot = self._unicast(target, pkt)
+        error, data, reboot = self._unicast(target, pkt)  # may change the ID (WRITE 7, FACTORY_RESET)
         if error is None:
             return []
         inst = pkt.instruction
         srl = target.status_return_level
         if inst == Instruction.PING or (inst in _READ_INSTRUCTIONS and srl >= 1) or srl >= 2:
-            reply = [(target, build_status(target.id, target.error_byte(error), data))]
+            reply = [(target, build_status(pkt.id, target.error_byte(error), data))]  # from the ID addressed
         else:
             reply = []
         if reboot:

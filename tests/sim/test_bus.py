@@ -236,3 +236,16 @@ def test_wire_is_half_duplex_a_write_delays_the_next_request():
     assert bus.feed(sync_write) == []
     (reply,) = bus.feed(build_instruction(1, PING))  # written at the same instant, sent after the sync write
     assert reply.due == pytest.approx(wire_time(len(sync_write) + 10 + 14, 1_000_000))
+
+
+@pytest.mark.parametrize(
+    "request_packet",
+    [
+        pytest.param(build_instruction(3, WRITE, u16(7) + b"\x0b"), id="write-id"),
+        pytest.param(build_instruction(3, Instruction.FACTORY_RESET, b"\xff"), id="factory-reset-all"),
+    ],
+)
+def test_a_status_comes_from_the_id_that_was_addressed(bus, request_packet):
+    (status,) = statuses(bus.handle(request_packet))
+    assert status.id == 3 and status.params == b"\x00"
+    assert 3 not in bus.ids
