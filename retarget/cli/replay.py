@@ -68,6 +68,12 @@ def add_mapping_arguments(parser: argparse.ArgumentParser) -> None:
         help="fixed BVH forward axis +z|-z|+x|-x instead of the torso's facing direction (auto)",
     )
     g.add_argument("--up", default=None, metavar="AXIS", help="BVH up axis (default +y)")
+    g.add_argument(
+        "--robot-forward",
+        default=None,
+        metavar="AXIS",
+        help="the robot's forward +x|-x|+y|-y (default: from its home pose)",
+    )
     g.add_argument("--arm-scale", default=None, metavar="F", help="human arm length -> this fraction of the reach")
     g.add_argument("--origin", default=None, metavar="X,Y,Z", help="where the human shoulder lands, metres, base frame")
     g.add_argument("--floor", default=None, metavar="Z", help="lowest target height, metres")
@@ -113,6 +119,7 @@ def load_inputs(args: argparse.Namespace) -> Inputs:
         "side": args.side,
         "forward": args.forward,
         "up": args.up,
+        "robot_forward": args.robot_forward,
         "arm_scale": args.arm_scale,
         "origin": args.origin,
         "floor": args.floor,

@@ -322,3 +322,25 @@ def test_arm_geometry(arm):
     np.testing.assert_allclose(g.pivot, [0.0, 0.0, 0.072 + 0.03865])
     upper = np.hypot(0.04975, 0.25)
     assert g.reach == pytest.approx(upper + 0.175 + 0.075 + 0.065 + 0.093575)
+
+
+def test_the_robot_forward_comes_from_the_home_pose():
+    koch = retarget.load_arm("koch")  # the community URDF points the arm along -x
+    g = arm_geometry(koch)
+    np.testing.assert_array_equal(g.forward, [-1.0, 0.0, 0.0])
+    np.testing.assert_array_equal(g.basis(), [[-1, 0, 0], [0, -1, 0], [0, 0, 1]])
+    np.testing.assert_array_equal(g.basis(Axis.PY)[:, 0], [0, 1, 0])
+    origin = MappingConfig().default_origin(g)
+    assert origin[0] < g.pivot[0]  # in front of the Koch is behind its base x axis
+    # T-pose right arm: the robot's right, whichever way it faces
+    targets = targets_of(t_pose(), koch, MappingConfig(arm_scale=0.3))
+    np.testing.assert_allclose(targets.raw[0] - origin, [0.0, 0.3 * g.reach, 0.0], atol=1e-9)
+    turned = targets_of(t_pose(), koch, MappingConfig(arm_scale=0.3, robot_forward=Axis.PX))
+    assert turned.raw[0, 1] < origin[1]
+
+
+def test_robot_forward_must_be_horizontal():
+    with pytest.raises(
+        ConfigError, match=r"mapping\.robot_forward: Expected one of auto, \+x, -x, \+y, -y \(got '\+z'\)"
+    ):
+        MappingConfig.from_table({"robot_forward": "+z"})
