@@ -21,6 +21,7 @@ _LAZY = {
     "Profile": "drivers.servo_plan",
     "ServoPlan": "drivers.servo_plan",
     "ServoSettings": "drivers.servo_plan",
+    "ServoState": "drivers.dynamixel_bus",
     "plan_servos": "drivers.servo_plan",
     "ShutdownMode": "retarget.bus",
     "UrlPortHandler": "drivers.port",

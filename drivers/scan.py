@@ -16,6 +16,7 @@ from dynamixel_sdk.robotis_def import COMM_RX_TIMEOUT
 
 from drivers.comm import Link, comm_result_name
 from drivers.control_table import BAUD_RATES, MAX_ID, MODEL_BY_NUMBER
+from drivers.latency import check_latency_timer
 from drivers.port import SUPPORTED_BAUDS, open_port
 from retarget.errors import ConfigError
 
@@ -92,10 +93,12 @@ def scan(
 ) -> list[FoundServo]:
     """Every servo found on ``port`` at each of ``bauds``, by baud then ID.  BusError when the port cannot open."""
     found: list[FoundServo] = []
-    for baud in bauds:
+    for k, baud in enumerate(bauds):
         if progress is not None:
             progress(f"scanning {port} at {baud} baud")
         handler = open_port(port, baud)
+        if k == 0:
+            check_latency_timer(port)  # a 16 ms FTDI timer makes every ping slow
         try:
             found.extend(scan_baud(Link(handler, retries=0), ids, broadcast=broadcast))
         finally:

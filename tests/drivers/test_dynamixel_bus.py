@@ -417,3 +417,19 @@ def test_torque_on_is_all_or_nothing(make_bus, url, sim_bus):
     with pytest.raises(BusError, match=r"^servo 4: no status packet writing Torque Enable = 1$"):
         bus.set_torque(True)
     assert set(torques(sim_bus).values()) == {0}  # servos 1-3 were enabled, then turned off again
+
+
+def test_read_state_reports_health_in_si_units(make_bus, url, sim_bus, arm):
+    bus = make_bus(url, shutdown=ShutdownMode.OFF)
+    bus.connect()
+    sim_bus.servo(8).ambient_temperature = 55.0
+    state = bus.read_state()
+    assert state.ids == (1, 2, 3, 4, 5, 6, 7, 8, 9)
+    np.testing.assert_allclose(state.position[[0, 1, 3, 5, 6, 7]], arm.rest, atol=units.RAD_PER_TICK)
+    assert state.position[2] == state.position[1]  # the shoulder shadow reads as its joint
+    xm = slice(0, 7)  # XM430-W350: current, 12 V; XL430-W250 (8, 9): load, 11.1 V
+    assert np.all(np.isfinite(state.current[xm])) and np.all(np.isnan(state.load[xm]))
+    assert np.all(np.isnan(state.current[7:])) and np.all(np.isfinite(state.load[7:]))
+    np.testing.assert_allclose(state.voltage, [12.0] * 7 + [11.1] * 2)
+    assert state.temperature[7] >= 55 and state.temperature[0] < 55
+    np.testing.assert_allclose(state.velocity, 0.0)
