@@ -328,10 +328,12 @@ class CCDSolver:
     ) -> IKResult:
         """Solve for the tool point at ``target`` ``(3,)`` metres, starting from ``q0`` ``(n_joints,)`` radians.
 
-        ``rotation``: optional ``(3, 3)`` target orientation of the tool frame (base frame).
+        ``rotation``: optional ``(3, 3)`` target orientation of the tool frame (base frame).  An
+        arm with fewer than 6 joints can rarely match a full orientation: it then ends at the
+        weighted compromise with ``converged=False``.
         ``tolerance``/``max_iterations``/``max_step`` override the solver's defaults for this call.
         ``q0`` outside the limits is clipped first.  Raises ``ValueError`` for bad shapes or
-        non-finite input.
+        non-finite input; never returns NaN.
         """
         n = self.n
         tx, ty, tz = _vec3(target, "target")
@@ -735,12 +737,6 @@ def _rotate(ux, uy, uz, kx, ky, kz, c, s) -> tuple[float, float, float]:
         uy * c + (kz * ux - kx * uz) * s + ky * ku,
         uz * c + (kx * uy - ky * ux) * s + kz * ku,
     )
-
-
-def _angle(f: Sequence[float], d: Sequence[Sequence[float]]) -> float:
-    """Angle (rad) between the rotation with rows ``f[0:3], f[3:6], f[6:9]`` and rows ``d``: acos((tr(F^T D)-1)/2)."""
-    tr = sum(f[3 * i + k] * d[i][k] for i in range(3) for k in range(3))
-    return math.acos(min(1.0, max(-1.0, (tr - 1.0) * 0.5)))
 
 
 def _vec3(value: Sequence[float] | np.ndarray, what: str) -> tuple[float, float, float]:
