@@ -126,13 +126,25 @@ class SimBus:
         baud: int = 1_000_000,
         return_delay_time: int | None = None,
         position: float = 2048.0,
+        boot_time: float = 0.0,
         faults: Faults | None = None,
         **bus_options: object,
     ) -> SimBus:
-        """Servos of one ``model`` with these IDs, set to ``baud``; every other item at its factory default."""
+        """Servos of one ``model`` with these IDs, set to ``baud``; every other item at its factory default.
+
+        ``boot_time`` (s) is how long a servo stays silent after REBOOT.
+        """
         clock = clock if clock is not None else MonotonicClock()
         servos = [
-            SimServo(model, i, clock=clock, baud=baud, return_delay_time=return_delay_time, position=position)
+            SimServo(
+                model,
+                i,
+                clock=clock,
+                baud=baud,
+                return_delay_time=return_delay_time,
+                position=position,
+                boot_time=boot_time,
+            )
             for i in ids
         ]
         return cls(servos, clock=clock, baud=baud, faults=faults, **bus_options)  # type: ignore[arg-type]
@@ -146,6 +158,7 @@ class SimBus:
         baud: int | None = None,
         pose: Sequence[float] | None = None,
         return_delay_time: int | None = None,
+        boot_time: float = 0.0,
         faults: Faults | None = None,
         **bus_options: object,
     ) -> SimBus:
@@ -172,12 +185,22 @@ class SimBus:
                 actual = 2048 + s.direction * (s.offset + rad_to_pulses(angle))
                 servos.append(
                     SimServo(
-                        s.model, s.id, clock=clock, baud=baud, return_delay_time=return_delay_time, position=actual
+                        s.model,
+                        s.id,
+                        clock=clock,
+                        baud=baud,
+                        return_delay_time=return_delay_time,
+                        position=actual,
+                        boot_time=boot_time,
                     )
                 )
         if arm.gripper is not None:
             g = arm.gripper.servo
-            servos.append(SimServo(g.model, g.id, clock=clock, baud=baud, return_delay_time=return_delay_time))
+            servos.append(
+                SimServo(
+                    g.model, g.id, clock=clock, baud=baud, return_delay_time=return_delay_time, boot_time=boot_time
+                )
+            )
         return cls(servos, clock=clock, baud=baud, faults=faults, **bus_options)  # type: ignore[arg-type]
 
     def _apply_scheduled_faults(self) -> None:

@@ -17,6 +17,7 @@ URL grammar::
     OPTIONS (ARM and ids forms):
       baud=BPS          the servos' Baud Rate item (default: the arm's, or the port's baud rate)
       rdt=N             the servos' Return Delay Time item, 2 us units (default 250, the factory value)
+      boot_ms=MS        how long a servo stays silent after REBOOT (default 0)
       clock=virtual     the bus runs on its own VirtualClock: waiting for a reply costs no real time,
                         the clock jumps to its arrival (default: clock=real, time.perf_counter)
       drop= corrupt= delay_ms= unplug= hwerror= wire= seed=
@@ -50,7 +51,7 @@ log = logging.getLogger(__name__)
 _REGISTRY: dict[str, SimBus] = {}
 _REGISTRY_LOCK = threading.Lock()
 _NAMES = itertools.count(1)
-_BUS_KEYS = frozenset({"ids", "model", "baud", "rdt", "clock"})
+_BUS_KEYS = frozenset({"ids", "model", "baud", "rdt", "boot_ms", "clock"})
 
 
 def register(name: str, bus: SimBus) -> str:
@@ -123,17 +124,17 @@ def bus_from_url(url: str, *, port_baud: int | None = None) -> SimBus:
         raise ConfigError("Expected clock=real or clock=virtual", key="clock", value=clock_name)
     clock = VirtualClock() if clock_name == "virtual" else MonotonicClock()
     faults = Faults.from_query(query, source=url)
-    baud_text = last("baud")
-    rdt_text = last("rdt")
+    baud_text, rdt_text, boot_text = last("baud"), last("rdt"), last("boot_ms")
     try:
         baud = int(baud_text) if baud_text else None
         rdt = int(rdt_text) if rdt_text else None
+        boot = float(boot_text) / 1000.0 if boot_text else 0.0
     except ValueError:
-        raise ConfigError("Expected integers for baud and rdt", key="url", value=url) from None
+        raise ConfigError("Expected numbers for baud, rdt and boot_ms", key="url", value=url) from None
     if where:
         if "ids" in query or "model" in query:
             raise ConfigError("give either an arm name or ids=/model=, not both", key="url", value=url)
-        return SimBus.from_arm(where, clock=clock, baud=baud, return_delay_time=rdt, faults=faults)
+        return SimBus.from_arm(where, clock=clock, baud=baud, return_delay_time=rdt, boot_time=boot, faults=faults)
     ids_text = last("ids")
     if not ids_text:
         raise ConfigError("Expected sim://ARM, sim://?ids=1-6&model=..., or sim://@NAME", key="url", value=url)
@@ -144,6 +145,7 @@ def bus_from_url(url: str, *, port_baud: int | None = None) -> SimBus:
         clock=clock,
         baud=baud,
         return_delay_time=rdt,
+        boot_time=boot,
         faults=faults,
     )
 

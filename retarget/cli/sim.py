@@ -46,6 +46,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     servos.add_argument(
         "--rdt", type=int, default=None, help="Return Delay Time item, 2 us units (default 250, factory)"
     )
+    servos.add_argument(
+        "--boot-ms", type=float, default=0.0, help="how long a servo stays silent after REBOOT (default 0)"
+    )
     where = parser.add_mutually_exclusive_group()
     where.add_argument("--pty", action="store_true", help="serve on a new pseudo-terminal (the default)")
     where.add_argument("--tcp", metavar="[HOST:]PORT", help="serve on TCP, e.g. 127.0.0.1:4000 (port 0: any free)")
@@ -104,11 +107,19 @@ def build_bus(args: argparse.Namespace):
             clock=clock,
             baud=args.baud or 1_000_000,
             return_delay_time=args.rdt,
+            boot_time=args.boot_ms / 1000.0,
             faults=faults,
         )
     if args.model is not None:
         raise ConfigError("--model goes with --ids", key="--model", value=args.model)
-    return SimBus.from_arm(args.arm or "wx250s", clock=clock, baud=args.baud, return_delay_time=args.rdt, faults=faults)
+    return SimBus.from_arm(
+        args.arm or "wx250s",
+        clock=clock,
+        baud=args.baud,
+        return_delay_time=args.rdt,
+        boot_time=args.boot_ms / 1000.0,
+        faults=faults,
+    )
 
 
 def run(args: argparse.Namespace) -> int:

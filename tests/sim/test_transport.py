@@ -33,7 +33,8 @@ def test_url_builds_the_servos(url, ids, model):
 
 
 def test_url_options():
-    bus = bus_from_url("sim://?ids=1-2&baud=57600&rdt=0&clock=virtual&drop=2:0.5&wire=1&seed=9")
+    bus = bus_from_url("sim://?ids=1-2&baud=57600&rdt=0&boot_ms=800&clock=virtual&drop=2:0.5&wire=1&seed=9")
+    assert bus.servo(2).boot_time == 0.8
     assert isinstance(bus.clock, VirtualClock)
     assert bus.baud == 57600 and bus.servo(1).baud == 57600 and bus.servo(1).return_delay == 0
     assert bus.faults.wire and bus.faults.seed == 9 and bus.faults.for_servo(2).drop == 0.5
@@ -50,7 +51,7 @@ def test_url_options():
         pytest.param("sim://?ids=1-x", ConfigError, "IDs like", id="bad-ids"),
         pytest.param("sim://?ids=3,3", ConfigError, "distinct", id="duplicate-ids"),
         pytest.param("sim://?ids=1&clock=fast", ConfigError, "clock=real", id="clock"),
-        pytest.param("sim://?ids=1&baud=fast", ConfigError, "integers", id="baud"),
+        pytest.param("sim://?ids=1&baud=fast", ConfigError, "numbers for baud", id="baud"),
         pytest.param("sim://wx250s?ids=1", ConfigError, "not both", id="arm-and-ids"),
         pytest.param("sim://@nobody", KeyError, "no SimBus registered as 'nobody'", id="unregistered"),
         pytest.param("sim://?ids=1&drop=2", ConfigError, r"fraction in \[0, 1\]", id="drop-range"),
