@@ -34,6 +34,7 @@ from __future__ import annotations
 import logging
 import math
 import struct
+from collections import deque
 from collections.abc import Callable
 
 from drivers.control_table import (
@@ -116,7 +117,8 @@ class SimServo:
         self._scheduled_errors: list[tuple[float, int]] = []
         self._silent_until = -math.inf
         self._unplugged_at = math.inf
-        self.writes: list[tuple[float, int, bytes]] = []  #: (time, address, data) of every accepted write
+        #: (time, address, data) of the last accepted writes, oldest first
+        self.writes: deque[tuple[float, int, bytes]] = deque(maxlen=10_000)
         self._set("Goal Position", self._present_from_actual(self._state[0]))
         self._indirect_used = False
         self.update()
