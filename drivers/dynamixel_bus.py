@@ -111,6 +111,7 @@ class DynamixelBus:
         rest_speed: rad/s of the move to the rest pose on close (REST).
         rest_timeout: seconds to wait for the rest pose before torque goes off anyway.
         rest_tolerance: rad; the rest pose counts as reached when every joint is this close.
+        shadow_tolerance: rad; torque stays off when a shadow servo reads further than this from its primary.
         recover: on a hardware error, reboot the servo and configure it again instead of raising.
         fast_read: FAST_SYNC_READ for positions: True, False, or None = when every servo's firmware has it.
         check_latency: check (and lower) the FTDI latency timer of a /dev/ttyUSBn port.
@@ -135,6 +136,7 @@ class DynamixelBus:
         rest_speed: float = 0.5,
         rest_timeout: float = 10.0,
         rest_tolerance: float = 0.02,
+        shadow_tolerance: float = 0.1,
         recover: bool = False,
         fast_read: bool | None = None,
         check_latency: bool = True,
@@ -171,6 +173,7 @@ class DynamixelBus:
         self.rest_speed = rest_speed
         self.rest_timeout = rest_timeout
         self.rest_tolerance = rest_tolerance
+        self.shadow_tolerance = shadow_tolerance
         self.recover = recover
         self.fast_read = fast_read
         self.check_latency = check_latency
@@ -355,8 +358,10 @@ class DynamixelBus:
         if self._faulted:
             raise BusError(f"bus is faulted ({self._faulted}); close it and connect again")
         ticks = self._read_joint_ticks(check_active=False)
-        goal_ticks = np.clip(ticks, self._servo_min, self._servo_max)
-        link.sync_write(116, 4, {s.id: _u32(t) for s, t in zip(self._joint_servos, goal_ticks, strict=True)})
+        self._check_shadows(ticks)
+        primary = self._primary_index
+        q = np.clip(units.ticks_to_rad(ticks[primary], offset=self._servo_offset[primary]), self.lower, self.upper)
+        self._send_goal_ticks(link, q)  # every servo of a joint gets its primary's angle, as write_goals will
         if self._gripper is not None:
             g = self._gripper
             t = units.signed32(link.read_register(g.id, g.model.register("Present Position")))
@@ -374,8 +379,7 @@ class DynamixelBus:
                     log.error("torque off after a failed torque on: %s", exc)
             raise
         self._torque = True
-        primary = self._primary_index
-        self._last_goal = units.ticks_to_rad(goal_ticks[primary], offset=self._servo_offset[primary])
+        self._last_goal = q
 
     # ------------------------------------------------------------------ gripper
 
@@ -413,6 +417,24 @@ class DynamixelBus:
         ticks = units.rad_to_ticks(goal[self._servo_joint], offset=self._servo_offset)
         ticks = np.clip(ticks, self._servo_min, self._servo_max)
         link.sync_write(116, 4, {s.id: _u32(t) for s, t in zip(self._joint_servos, ticks, strict=True)})
+
+    def _check_shadows(self, ticks: np.ndarray) -> None:
+        """Refuse torque when a shadow disagrees with its primary: under torque the two would fight (overload)."""
+        q = units.ticks_to_rad(ticks, offset=self._servo_offset)
+        q_primary = q[self._primary_index][self._servo_joint]
+        off = np.abs(q - q_primary)
+        bad = [s for s, d in zip(self._joint_servos, off, strict=True) if d > self.shadow_tolerance]
+        if bad:
+            detail = ", ".join(
+                f"servo {s.id} reads {float(q[i] - q_primary[i]):+.3f} rad from its primary"
+                for i, s in enumerate(self._joint_servos)
+                if s in bad
+            )
+            raise BusError(
+                f"shadow servo disagrees with its joint ({detail}); under torque they would fight: check the horn "
+                "and the servo's offset in the arm description",
+                ids=[s.id for s in bad],
+            )
 
     def _read_joint_ticks(self, *, check_active: bool = True) -> np.ndarray:
         link = self._require_active() if check_active else self.link

@@ -433,3 +433,22 @@ def test_read_state_reports_health_in_si_units(make_bus, url, sim_bus, arm):
     np.testing.assert_allclose(state.voltage, [12.0] * 7 + [11.1] * 2)
     assert state.temperature[7] >= 55 and state.temperature[0] < 55
     np.testing.assert_allclose(state.velocity, 0.0)
+
+
+def test_shadow_disagreeing_with_its_primary_keeps_torque_off(make_bus, url, sim_bus):
+    sim_bus.servo(3).set_position(sim_bus.servo(3).get("Present Position") + 300)  # drive mode still 0 here
+    bus = make_bus(url)
+    with pytest.raises(
+        BusError, match=r"^servo 3: shadow servo disagrees with its joint \(servo 3 reads [+-]0\.\d+ rad"
+    ):
+        bus.connect()
+    assert set(torques(sim_bus).values()) == {0} and not bus.connected
+
+
+def test_eeprom_change_on_a_servo_under_torque_turns_it_off_first(make_bus, url, sim_bus, caplog):
+    make_bus(url, shutdown=ShutdownMode.HOLD).connect()
+    sim_bus.servo(2).set("Return Delay Time", 250)  # torque is on: a plain write would be an access error
+    with caplog.at_level("WARNING", logger="drivers.dynamixel_bus"):
+        make_bus(url, shutdown=ShutdownMode.HOLD).connect()
+    assert sim_bus.servo(2).get("Return Delay Time") == 0 and sim_bus.servo(2).get("Torque Enable") == 1
+    assert "servo 2: turning torque off to write its EEPROM settings" in caplog.text
