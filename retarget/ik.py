@@ -25,8 +25,9 @@ Around that update:
   extended (x2, x4, ...) while that keeps lowering the distance;
 - **escape from limit minima**: when a sweep improves the squared distance by less than
   ``1 - stall_ratio`` (typically a joint pinned on a limit) and the target is within the
-  arm's reach bound, the solve restarts from a deterministic pseudo-random seed inside
-  the limits (``seed``), keeping the best pose;
+  arm's reach bound, the solve restarts from a deterministic pseudo-random seed
+  (``seed``): first the best pose perturbed a little, then uniform inside the limits,
+  keeping the best pose;
 - **short levers**: a joint whose lever ``|u⊥|`` is shorter than ``short_lever`` takes
   only ``(|u⊥| / short_lever)^2`` of its update (the Jacobian-transpose scaling), so a
   forearm roll with a straight wrist does not swing far for a millimetre;
@@ -169,7 +170,10 @@ class CCDSolver:
     - ``orientation_weight``: weight of the orientation terms against the (reach-scaled)
       position terms (default 0.1: it solved the most random 6-DOF poses);
       ``orientation_tolerance``: radians (default 0.01);
-    - ``restarts``: how many new seeds may be tried after stalls (default 16);
+    - ``restarts``: how many new seeds may be tried after stalls (default 16); the first
+      ``local_restarts`` (default 4) perturb the best pose so far by Gaussian noise of
+      ``perturbation * k`` rad (default 0.1, k = 1, 2, ...) to stay near the current branch
+      (no jumps while tracking), the rest are uniform inside the limits;
       ``stall_ratio``: a sweep that leaves more than this fraction of the squared distance
       is a stall (default 0.99); ``seed``: seeds the pseudo-random restarts, so a solve is a
       pure function of its inputs;
@@ -195,6 +199,8 @@ class CCDSolver:
         orientation_weight: float = 0.1,
         orientation_tolerance: float = 1e-2,
         restarts: int = 16,
+        local_restarts: int = 4,
+        perturbation: float = 0.1,
         stall_ratio: float = 0.99,
         seed: int = 0,
         accel_ratio: float = 0.5,
@@ -210,6 +216,8 @@ class CCDSolver:
         self.orientation_weight = _positive(orientation_weight, "orientation_weight", zero=True)
         self.orientation_tolerance = _positive(orientation_tolerance, "orientation_tolerance")
         self.restarts = _count(restarts, "restarts", zero=True)
+        self.local_restarts = _count(local_restarts, "local_restarts", zero=True)
+        self.perturbation = _positive(perturbation, "perturbation")
         if not 0 < stall_ratio < 1:
             raise ConfigError("stall_ratio must lie in (0, 1)", key="stall_ratio", value=stall_ratio)
         self.stall_ratio = float(stall_ratio)
@@ -394,7 +402,7 @@ class CCDSolver:
                     restarts += 1
                     if rng is None:
                         rng = random.Random(self.seed)
-                    q = self._restart_seed(rng)
+                    q = self._restart_seed(rng, restarts, best_q)
                     f = fresh = self._fk(q)
                     dx, dy, dz = f[0] - tx, f[1] - ty, f[2] - tz
                     err2 = dx * dx + dy * dy + dz * dz
@@ -427,9 +435,14 @@ class CCDSolver:
             alpha *= 2.0
         return err2
 
-    def _restart_seed(self, rng: random.Random) -> list[float]:
-        """A restart seed: uniform inside the limits (the first sweep then turns the waist to the target)."""
-        return [rng.uniform(lo, hi) for lo, hi in zip(self._lo, self._hi, strict=True)]
+    def _restart_seed(self, rng: random.Random, k: int, best: list[float]) -> list[float]:
+        """Seed of restart ``k`` (1-based): the best pose perturbed (Gaussian, ``perturbation * k`` rad) for the
+        first ``local_restarts``, so a warm solve stays on its branch; then uniform inside the limits."""
+        lower, upper = self._lo, self._hi
+        if k <= self.local_restarts:
+            sigma = self.perturbation * k
+            return [min(max(b + rng.gauss(0.0, sigma), lo), hi) for b, lo, hi in zip(best, lower, upper, strict=True)]
+        return [rng.uniform(lo, hi) for lo, hi in zip(lower, upper, strict=True)]
 
     def _sweep(self, q: list[float], tx: float, ty: float, tz: float, tol2: float, fresh: tuple | None) -> float:
         """One tip-to-base sweep on ``q`` (in place); returns the squared distance after it.
@@ -594,7 +607,7 @@ class CCDSolver:
                 else:
                     restarts += 1
                     rng = rng or random.Random(self.seed)
-                    q = self._restart_seed(rng)
+                    q = self._restart_seed(rng, restarts, best_q)
                     cost, perr, oerr = measure(q)
         _, perr, oerr = best
         converged = perr <= tol and oerr <= rtol
