@@ -41,7 +41,9 @@ _CHANNEL_LOOKUP = {name.lower(): name for name in CHANNEL_NAMES}
 
 _FRAMES_RE = re.compile(r"Frames\s*:\s*(\S*)\s*", re.IGNORECASE)
 _FRAME_TIME_RE = re.compile(r"Frame\s+Time\s*:\s*(\S*)\s*", re.IGNORECASE)
-_NUMBER_RE = re.compile(rb"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
+_NUMBER = rb"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
+_NUMBER_RE = re.compile(_NUMBER)
+_NUMBERS_RE = re.compile(rb"(?:%s\n)*%s" % (_NUMBER, _NUMBER))  # newline-separated
 _NONFINITE_RE = re.compile(rb"[+-]?(?:nan|inf|infinity)(?:\(\w*\))?", re.IGNORECASE)
 
 
@@ -385,14 +387,23 @@ def _read_frames(data: bytes, header: _Header, path: Path | None) -> np.ndarray:
 
 
 def _read_slow_tokens(block, starts, ends, values, slow) -> tuple[int, str] | None:
-    """Parse the tokens the fast path flagged with ``float()``; return the first bad one as (token, message)."""
-    for i in np.flatnonzero(slow):
-        word = block[starts[i] : ends[i]]
+    """Read the tokens the fast path flagged; return the first bad one as (token index, message).
+
+    Valid ones (exponents, long numbers) are checked with one regex over all
+    of them and converted in bulk; only a failure is looked at token by token.
+    """
+    index = np.flatnonzero(slow)
+    if index.size == 0:
+        return None
+    words = [block[starts[i] : ends[i]] for i in index.tolist()]
+    if _NUMBERS_RE.fullmatch(b"\n".join(words)):
+        values[index] = np.array(words).astype(np.float64)
+        return None
+    for i, word in zip(index.tolist(), words, strict=True):
         if _NUMBER_RE.fullmatch(word):
-            values[i] = float(word)
             continue
         shown = word.decode("utf-8", "replace")
         if _NONFINITE_RE.fullmatch(word):
-            return int(i), f"Expected a finite number, got {shown!r}"
-        return int(i), f"Expected a number, got {shown!r}"
-    return None
+            return i, f"Expected a finite number, got {shown!r}"
+        return i, f"Expected a number, got {shown!r}"
+    raise AssertionError("unreachable: the joined tokens failed the regex but each one passed")

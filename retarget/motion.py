@@ -86,6 +86,10 @@ class ArmChain:
         return float(np.median(upper)), float(np.median(fore))
 
 
+#: Elements per vector step of the FK: temporaries of this many doubles stay under glibc's mmap threshold.
+_FRAMES_PER_STEP = 12_000
+
+
 def _readonly(a: np.ndarray) -> np.ndarray:
     a.flags.writeable = False
     return a
@@ -273,7 +277,11 @@ class Motion:
         return t
 
     def _local_rotations(self, need: np.ndarray) -> np.ndarray:
-        """``(J, n, 3, 3)`` local rotations (identity rows where not ``need``), grouped by rotation order."""
+        """``(J, n, 3, 3)`` local rotations (garbage where not ``need``), grouped by rotation order.
+
+        Runs over slices of ``_JOINTS_PER_STEP`` joints so the temporaries stay
+        small (large ones cost page faults on every call).
+        """
         n, nj = self.n_frames, self.n_joints
         out = np.empty((nj, n, 3, 3))
         groups: dict[str, list[int]] = {}
@@ -281,14 +289,21 @@ class Motion:
             if need[j]:
                 groups.setdefault(self.layout[j].rotation_order, []).append(j)
         columns = self.channels.T
+        step = max(1, _FRAMES_PER_STEP // max(n, 1))
         for order, joints in groups.items():
-            idx = np.array(joints)
-            if not order:
-                out[idx] = np.eye(3)
-                continue
-            cols = np.array([self.layout[j].columns("rotation") for j in joints])  # (k, m)
-            angles = np.radians(columns[cols.T])  # (m, k, n)
-            out[idx] = compose_cos_sin([AXIS_INDEX[a] for a in order], np.cos(angles), np.sin(angles))
+            axes = [AXIS_INDEX[a] for a in order]
+            for s in range(0, len(joints), step):
+                part = joints[s : s + step]
+                contiguous = part[-1] - part[0] == len(part) - 1
+                target = out[part[0] : part[-1] + 1] if contiguous else None
+                if not order:
+                    (target if contiguous else out[part])[...] = np.eye(3)
+                    continue
+                cols = np.array([self.layout[j].columns("rotation") for j in part])  # (k, m)
+                angles = np.radians(columns[cols.T])  # (m, k, n)
+                result = compose_cos_sin(axes, np.cos(angles), np.sin(angles), out=target)
+                if not contiguous:
+                    out[part] = result
         return out
 
     # -------------------------------------------------------------------------------------- arms

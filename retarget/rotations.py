@@ -67,23 +67,26 @@ def euler_to_matrix(angles: np.ndarray | Sequence[float], order: str) -> np.ndar
     return compose_cos_sin(axes, [cos[..., m] for m in range(len(axes))], [sin[..., m] for m in range(len(axes))])
 
 
-def compose_cos_sin(axes: Sequence[int], cos: Sequence[np.ndarray], sin: Sequence[np.ndarray]) -> np.ndarray:
+def compose_cos_sin(
+    axes: Sequence[int], cos: Sequence[np.ndarray], sin: Sequence[np.ndarray], *, out: np.ndarray | None = None
+) -> np.ndarray:
     """``R = R_axes[0] @ R_axes[1] @ ...`` from precomputed cosines and sines.
 
     ``cos[m]``, ``sin[m]``: ``(...)`` arrays of the m-th angle.  The product is
     built entry by entry with the zeros and ones of the elementary matrices
     folded away, so each entry costs a few elementwise operations instead of a
-    batched 3x3 matmul.  Returns ``(..., 3, 3)``.
+    batched 3x3 matmul.  Returns ``(..., 3, 3)``, written into ``out`` if given.
     """
+    shape = tuple(np.shape(cos[0])) if len(cos) else ()
+    if out is None:
+        out = np.empty(shape + (3, 3))
     if not axes:
-        shape = np.shape(cos[0]) if len(cos) else ()
-        return np.broadcast_to(np.eye(3), tuple(shape) + (3, 3)).copy()
+        out[...] = np.eye(3)
+        return out
     # A symbolic 3x3 matrix: entries are None (0), 1.0 (one), or arrays.
     mat = _elementary(axes[0], cos[0], sin[0])
     for m in range(1, len(axes)):
         mat = _symbolic_matmul(mat, _elementary(axes[m], cos[m], sin[m]))
-    shape = np.shape(cos[0])
-    out = np.empty(tuple(shape) + (3, 3))
     for i in range(3):
         for k in range(3):
             entry = mat[i][k]
