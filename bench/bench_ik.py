@@ -148,6 +148,31 @@ def main() -> None:
             q = r.q
     print(f"\n9 more smooth paths: converged {worst_conv / (9 * args.n):.1%}, worst |dq| {worst:.4f} rad/tick")
 
+    # -- position + orientation (6-DOF arms) ----------------------------------------------------------------------
+    if arm.n_joints >= 6:
+        pose_solver = CCDSolver(arm, max_iterations=30)
+        poses = arm.chain.fk_batch(q_path)
+        times, conv, worst = [], 0, 0.0
+        q = q_path[0].copy()
+        for T in poses:
+            t0 = time.perf_counter()
+            r = pose_solver.solve(T[:3, 3], q, T[:3, :3])
+            times.append(time.perf_counter() - t0)
+            worst = max(worst, float(np.abs(r.q - q).max()))
+            conv += r.converged
+            q = r.q
+        print(f"\npose path (position 1 mm + orientation 0.01 rad), warm, budget 30 sweeps: {len(poses)}")
+        print(f"  time        {ms(times)}")
+        print(f"  converged   {conv / len(poses):.1%}   worst |dq| {worst:.4f} rad/tick")
+        cold = CCDSolver(arm, max_iterations=300)
+        Qp = rng.uniform(arm.lower, arm.upper, (100, arm.n_joints))
+        times, conv = [], 0
+        for T in arm.chain.fk_batch(Qp):
+            t0 = time.perf_counter()
+            conv += cold.solve(T[:3, 3], home, T[:3, :3]).converged
+            times.append(time.perf_counter() - t0)
+        print(f"random poses, cold from home, budget 300 sweeps: 100   {ms(times)}   converged {conv}%")
+
     # -- cost of one sweep and of the early-out -----------------------------------------------------------------
     reps = 2000
     t_far = rand_targets[0]
