@@ -200,6 +200,21 @@ class Link:
     def write_register(self, dxl_id: int, reg: Register, value: int) -> None:
         self.write(dxl_id, reg.address, reg.encode(int(value)), what=f"{reg.name} = {int(value)}")
 
+    def write_maybe_unacknowledged(self, dxl_id: int, reg: Register, value: int) -> None:
+        """WRITE that may get no status packet (Status Return Level itself): a missing reply is not an error.
+
+        The reply, when there is one, is waited for, so it cannot be mistaken for the next transaction's.
+        """
+        data = list(reg.encode(int(value)))
+        result, error = self.ph.writeTxRx(self.port, dxl_id, reg.address, reg.size, data)
+        if result == COMM_RX_TIMEOUT:
+            return
+        if result != COMM_SUCCESS:
+            raise self._fail(f"{comm_result_name(result)} writing {reg.name} = {int(value)}", [dxl_id])
+        name = status_error_name(error)
+        if name is not None:
+            raise self._fail(f"{name} writing {reg.name} = {int(value)}", [dxl_id])
+
     def reboot(self, dxl_id: int) -> None:
         for attempt in range(self.retries + 1):
             if attempt:

@@ -518,6 +518,8 @@ class DynamixelBus:
     def _configure(self, s: ServoPlan) -> None:
         """Write what differs, EEPROM first with torque off (the EEPROM rule), then the RAM profile."""
         link = self.link
+        # every reply on, first: a servo left at Status Return Level 0 or 1 answers only pings (or reads)
+        link.write_maybe_unacknowledged(s.id, s.model.register("Status Return Level"), 2)
         eeprom, ram = self.settings.registers(s, self.arm)
         block = link.read(s.id, _EEPROM_START, _EEPROM_END - _EEPROM_START, what="the EEPROM settings").data
         changes = {}
@@ -536,9 +538,6 @@ class DynamixelBus:
                 link.write_register(s.id, s.model.register(name), value)
         for name, value in ram.items():
             link.write_register(s.id, s.model.register(name), value)
-        srl = s.model.register("Status Return Level")
-        if link.read_register(s.id, srl) != 2:
-            link.write_register(s.id, srl, 2)
 
     def _reboot_and_configure(self, s: ServoPlan) -> None:
         link = self.link

@@ -75,6 +75,7 @@ def test_connect_configures_every_servo_then_enables_torque(make_bus, transport_
     assert gripper.get("Torque Enable") == 1
     # enabling torque did not move anything: every joint still reads its starting (rest) pose
     np.testing.assert_allclose(bus.read_positions(), arm.rest, atol=units.RAD_PER_TICK)
+    assert bus.status().retries == 0  # a clean bus needs no retry: no stale reply was left behind
     bus.close()  # before the pty/TCP server goes away
 
 
@@ -452,3 +453,10 @@ def test_eeprom_change_on_a_servo_under_torque_turns_it_off_first(make_bus, url,
         make_bus(url, shutdown=ShutdownMode.HOLD).connect()
     assert sim_bus.servo(2).get("Return Delay Time") == 0 and sim_bus.servo(2).get("Torque Enable") == 1
     assert "servo 2: turning torque off to write its EEPROM settings" in caplog.text
+
+
+@pytest.mark.parametrize("level", [0, 1], ids=["ping-only", "reads-only"])
+def test_status_return_level_is_restored(make_bus, url, sim_bus, level):
+    sim_bus.servo(4).set("Status Return Level", level)
+    make_bus(url, shutdown=ShutdownMode.OFF).connect()
+    assert sim_bus.servo(4).get("Status Return Level") == 2 and sim_bus.servo(4).get("Torque Enable") == 1
