@@ -58,7 +58,7 @@ __all__ = ["ControlLoop", "LoopConfig", "TickRecord", "run_on_bus"]
 
 log = logging.getLogger(__name__)
 
-_BLOCK = 4096  #: targets are resampled this many slots at a time
+_BLOCK = 256  #: targets are resampled this many slots at a time
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -266,8 +266,13 @@ class ControlLoop:
                 c0 = perf()
                 i = k % n_slots if looping else k
                 if not block0 <= i < block1:  # sample the targets of the next slots, a block at a time
-                    block0, block1 = i, min(i + _BLOCK, n_slots)
-                    positions, rotations, clamped_mask = self.sample(block0, block1)
+                    if i == block1 or rotations is not None:
+                        block0, block1 = i, min(i + _BLOCK, n_slots)
+                        positions, rotations, clamped_mask = self.sample(block0, block1)
+                    else:  # after a skip only this slot (an overrunning loop skips every tick)
+                        one, moved = self.targets.at(cfg.start + i * self.step)
+                        block0, block1 = i, i + 1
+                        positions, clamped_mask = one[None], (moved,)
                 target = positions[i - block0]
                 rotation = None if rotations is None else rotations[i - block0]
                 result = solve(target, q_cmd, rotation)

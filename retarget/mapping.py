@@ -411,6 +411,30 @@ class Workspace:
         moved = (r < self.r_min) | (r > self.r_max) | low
         return np.where(moved[..., None], d + self.center, p), moved
 
+    def clamp_point(self, x: float, y: float, z: float) -> tuple[float, float, float, bool]:
+        """:meth:`clamp` of one point in plain floats (~20x faster than numpy for a single point)."""
+        cx, cy, cz = (float(v) for v in self.center)
+        dx, dy, dz = x - cx, y - cy, z - cz
+        r = math.sqrt(dx * dx + dy * dy + dz * dz)
+        if self.r_min <= r <= self.r_max and z >= self.floor:
+            return x, y, z, False
+        radius = min(max(r, self.r_min), self.r_max)
+        if r > 1e-12:
+            k = radius / r
+            dx, dy, dz = dx * k, dy * k, dz * k
+        else:
+            dx, dy, dz = radius, 0.0, 0.0
+        if dz + cz < self.floor:
+            fz = self.floor - cz
+            hx, hy = x - cx, y - cy
+            hn = math.hypot(hx, hy)
+            ux, uy = (hx / hn, hy / hn) if hn > 1e-12 else (1.0, 0.0)
+            lo = math.sqrt(max(self.r_min**2 - fz**2, 0.0))
+            hi = math.sqrt(max(self.r_max**2 - fz**2, 0.0))
+            hn = min(max(hn, lo), hi)
+            dx, dy, dz = ux * hn, uy * hn, fz
+        return dx + cx, dy + cy, dz + cz, True
+
 
 # ----------------------------------------------------------------------------------------------- the mapping
 
@@ -544,6 +568,20 @@ class Targets:
                 self.rotations[i0] * (1.0 - w)[:, None, None] + self.rotations[i1] * w[:, None, None]
             )
         return positions, rotations, clamped
+
+    def at(self, time: float) -> tuple[np.ndarray, bool]:
+        """The position target ``(3,)`` metres at one clip ``time`` and whether it was clamped (plain floats).
+
+        Same values as :meth:`sample` (without rotations), for a single time.
+        """
+        n = self.n_frames
+        f = min(max(time / self.frame_time, 0.0), n - 1.0)
+        i0 = min(int(f), max(n - 2, 0))
+        w = f - i0 if n > 1 else 0.0
+        a, b = self.raw[i0].tolist(), self.raw[min(i0 + 1, n - 1)].tolist()
+        u = 1.0 - w
+        x, y, z, moved = self.workspace.clamp_point(a[0] * u + b[0] * w, a[1] * u + b[1] * w, a[2] * u + b[2] * w)
+        return np.array((x, y, z)), moved
 
 
 def _orthonormalize(m: np.ndarray) -> np.ndarray:

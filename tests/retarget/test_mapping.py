@@ -344,3 +344,23 @@ def test_robot_forward_must_be_horizontal():
         ConfigError, match=r"mapping\.robot_forward: Expected one of auto, \+x, -x, \+y, -y \(got '\+z'\)"
     ):
         MappingConfig.from_table({"robot_forward": "+z"})
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2], ids=lambda s: f"seed{s}")
+def test_the_scalar_clamp_and_sample_agree_with_the_vectorized_ones(ws, seed):
+    rng = np.random.default_rng(seed)
+    points = rng.uniform(-0.8, 0.8, size=(300, 3))
+    points[:10] = ws.center + rng.normal(scale=1e-3, size=(10, 3))  # near the centre
+    out, moved = ws.clamp(points)
+    for p, o, m in zip(points, out, moved, strict=True):
+        x, y, z, mm = ws.clamp_point(*p.tolist())
+        np.testing.assert_allclose((x, y, z), o, atol=1e-12)
+        assert mm == m
+    raw = rng.uniform(-0.6, 0.6, size=(40, 3))
+    targets = Targets.from_raw(raw, frame_time=0.1, workspace=ws)
+    times = rng.uniform(-0.5, 4.5, size=50)
+    positions, _, clamped = targets.sample(times)
+    for t, p, c in zip(times, positions, clamped, strict=True):
+        one, moved = targets.at(float(t))
+        np.testing.assert_allclose(one, p, atol=1e-12)
+        assert moved == c
