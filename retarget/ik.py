@@ -564,13 +564,21 @@ class CCDSolver:
         wo = self.orientation_weight
         inv_reach2 = 1.0 / (self.reach * self.reach)
 
+        g = (rot[0][0], rot[1][0], rot[2][0], rot[0][1], rot[1][1], rot[2][1], rot[0][2], rot[1][2], rot[2][2])
+
+        def score(d2: float, tr: float) -> tuple[float, float, float]:
+            angle = math.acos(min(1.0, max(-1.0, (tr - 1.0) * 0.5)))
+            return d2 * inv_reach2 + wo * (3.0 - tr), math.sqrt(d2), angle
+
         def measure(qq: list[float]) -> tuple[float, float, float]:
             f = self._fk(qq)
             dx, dy, dz = f[0] - tx, f[1] - ty, f[2] - tz
-            d2 = dx * dx + dy * dy + dz * dz
-            tr = sum(f[3 + 3 * i + k] * rot[i][k] for i in range(3) for k in range(3))
-            angle = math.acos(min(1.0, max(-1.0, (tr - 1.0) * 0.5)))
-            return d2 * inv_reach2 + wo * (3.0 - tr), math.sqrt(d2), angle
+            tr = (
+                f[3] * rot[0][0] + f[4] * rot[0][1] + f[5] * rot[0][2]
+                + f[6] * rot[1][0] + f[7] * rot[1][1] + f[8] * rot[1][2]
+                + f[9] * rot[2][0] + f[10] * rot[2][1] + f[11] * rot[2][2]
+            )  # fmt: skip
+            return score(dx * dx + dy * dy + dz * dz, tr)
 
         cost, perr, oerr = measure(q)
         best_q, best = q[:], (cost, perr, oerr)
@@ -582,9 +590,8 @@ class CCDSolver:
         while not (perr <= tol and oerr <= rtol) and sweeps < budget:
             sweeps += 1
             before = q[:]
-            self._sweep_pose(q, tx, ty, tz, rot)
             prev = cost
-            cost, perr, oerr = measure(q)
+            cost, perr, oerr = score(*self._sweep_pose(q, tx, ty, tz, g))
             if cost > prev * self.accel_ratio:  # slow: line search along the sweep's step
                 step = [a - b for a, b in zip(q, before, strict=True)]
                 alpha = 2.0
@@ -613,41 +620,92 @@ class CCDSolver:
         converged = perr <= tol and oerr <= rtol
         return IKResult(np.array(best_q), perr, sweeps, converged, orientation_error=oerr, restarts=restarts)
 
-    def _sweep_pose(self, q: list[float], tx: float, ty: float, tz: float, rot: tuple) -> None:
-        """One tip-to-base position + orientation sweep on ``q`` in place: ``phi* = atan2(k3, k2 - k1)``."""
+    def _sweep_pose(self, q: list[float], tx: float, ty: float, tz: float, g: tuple) -> tuple[float, float]:
+        """One tip-to-base position + orientation sweep on ``q`` in place: ``phi* = atan2(k3, k2 - k1)``.
+
+        ``g`` holds the desired tool axes (the target rotation's columns) as 9 floats.  Returns
+        the squared distance and ``tr(R^T R_target)`` after the sweep.
+        """
         f = self._fk(q)
         ex, ey, ez = f[0], f[1], f[2]
-        h = [(f[3], f[6], f[9]), (f[4], f[7], f[10]), (f[5], f[8], f[11])]  # current tool axes (columns)
-        g = [(rot[0][i], rot[1][i], rot[2][i]) for i in range(3)]  # desired tool axes (columns)
+        # current tool axes h0, h1, h2: the columns of the tool rotation
+        h0x, h0y, h0z, h1x, h1y, h1z, h2x, h2y, h2z = f[3], f[6], f[9], f[4], f[7], f[10], f[5], f[8], f[11]
+        g0x, g0y, g0z, g1x, g1y, g1z, g2x, g2y, g2z = g
         px, py, pz, ax, ay, az = self._px, self._py, self._pz, self._ax, self._ay, self._az
         lower, upper, w = self._lo, self._hi, self.weights
         scale = 1.0 / (self.reach * self.reach)
         wo = self.orientation_weight
+        sqrt = math.sqrt
         for j in range(self.n - 1, -1, -1):
             x0, y0, z0 = px[j], py[j], pz[j]
             ux, uy, uz = ex - x0, ey - y0, ez - z0
             vx, vy, vz = tx - x0, ty - y0, tz - z0
             kx, ky, kz = ax[j], ay[j], az[j]
-            nu = math.sqrt(ux * ux + uy * uy + uz * uz)
-            nv = math.sqrt(vx * vx + vy * vy + vz * vz)
-            wp = (1.0 + min(nu, nv) / max(nu, nv, 1e-12)) * scale
-            k1 = wp * (kx * vx + ky * vy + kz * vz) * (kx * ux + ky * uy + kz * uz)
-            k2 = wp * (ux * vx + uy * vy + uz * vz)
-            k3 = wp * (kx * (uy * vz - uz * vy) + ky * (uz * vx - ux * vz) + kz * (ux * vy - uy * vx))
-            for (hx, hy, hz), (gx, gy, gz) in zip(h, g, strict=True):
-                k1 += wo * (kx * gx + ky * gy + kz * gz) * (kx * hx + ky * hy + kz * hz)
-                k2 += wo * (gx * hx + gy * hy + gz * hz)
-                k3 += wo * (kx * (hy * gz - hz * gy) + ky * (hz * gx - hx * gz) + kz * (hx * gy - hy * gx))
+            nu = sqrt(ux * ux + uy * uy + uz * uz)
+            nv = sqrt(vx * vx + vy * vy + vz * vz)
+            wp = (1.0 + (nu / nv if nu < nv else nv / nu if nu > 0.0 else 1.0)) * scale
+            au = kx * ux + ky * uy + kz * uz
+            ah0 = kx * h0x + ky * h0y + kz * h0z
+            ah1 = kx * h1x + ky * h1y + kz * h1z
+            ah2 = kx * h2x + ky * h2y + kz * h2z
+            k1 = wp * (kx * vx + ky * vy + kz * vz) * au + wo * (
+                (kx * g0x + ky * g0y + kz * g0z) * ah0
+                + (kx * g1x + ky * g1y + kz * g1z) * ah1
+                + (kx * g2x + ky * g2y + kz * g2z) * ah2
+            )
+            k2 = wp * (ux * vx + uy * vy + uz * vz) + wo * (
+                g0x * h0x
+                + g0y * h0y
+                + g0z * h0z
+                + g1x * h1x
+                + g1y * h1y
+                + g1z * h1z
+                + g2x * h2x
+                + g2y * h2y
+                + g2z * h2z
+            )
+            # k3 = a . (wp u x v + wo sum h_i x g_i)
+            cx = wp * (uy * vz - uz * vy) + wo * (h0y * g0z - h0z * g0y + h1y * g1z - h1z * g1y + h2y * g2z - h2z * g2y)
+            cy = wp * (uz * vx - ux * vz) + wo * (h0z * g0x - h0x * g0z + h1z * g1x - h1x * g1z + h2z * g2x - h2x * g2z)
+            cz = wp * (ux * vy - uy * vx) + wo * (h0x * g0y - h0y * g0x + h1x * g1y - h1y * g1x + h2x * g2y - h2y * g2x)
             old = q[j]
-            new = min(max(old + w[j] * _atan2(k3, k2 - k1), lower[j]), upper[j])
+            new = old + w[j] * _atan2(kx * cx + ky * cy + kz * cz, k2 - k1)
+            if new < lower[j]:
+                new = lower[j]
+            elif new > upper[j]:
+                new = upper[j]
             d = new - old
             if d == 0.0:
                 continue
             q[j] = new
             c, s = _cos(d), _sin(d)
-            rx, ry, rz = _rotate(ux, uy, uz, kx, ky, kz, c, s)
-            ex, ey, ez = x0 + rx, y0 + ry, z0 + rz
-            h = [_rotate(hx, hy, hz, kx, ky, kz, c, s) for hx, hy, hz in h]
+            c1 = 1.0 - c
+            # Rodrigues on u and the three tool axes: x c + (k x x) s + k (k . x)(1 - c)
+            m = au * c1
+            ex = x0 + ux * c + (ky * uz - kz * uy) * s + kx * m
+            ey = y0 + uy * c + (kz * ux - kx * uz) * s + ky * m
+            ez = z0 + uz * c + (kx * uy - ky * ux) * s + kz * m
+            m = ah0 * c1
+            h0x, h0y, h0z = (
+                h0x * c + (ky * h0z - kz * h0y) * s + kx * m,
+                h0y * c + (kz * h0x - kx * h0z) * s + ky * m,
+                h0z * c + (kx * h0y - ky * h0x) * s + kz * m,
+            )
+            m = ah1 * c1
+            h1x, h1y, h1z = (
+                h1x * c + (ky * h1z - kz * h1y) * s + kx * m,
+                h1y * c + (kz * h1x - kx * h1z) * s + ky * m,
+                h1z * c + (kx * h1y - ky * h1x) * s + kz * m,
+            )
+            m = ah2 * c1
+            h2x, h2y, h2z = (
+                h2x * c + (ky * h2z - kz * h2y) * s + kx * m,
+                h2y * c + (kz * h2x - kx * h2z) * s + ky * m,
+                h2z * c + (kx * h2y - ky * h2x) * s + kz * m,
+            )
+        dx, dy, dz = ex - tx, ey - ty, ez - tz
+        tr = g0x * h0x + g0y * h0y + g0z * h0z + g1x * h1x + g1y * h1y + g1z * h1z + g2x * h2x + g2y * h2y + g2z * h2z
+        return dx * dx + dy * dy + dz * dz, tr
 
 
 # -------------------------------------------------------------------------------------------------------------------
@@ -740,16 +798,6 @@ def _mul(r00, r01, r02, r10, r11, r12, r20, r21, r22, o) -> tuple[float, ...]:
         r10 * o00 + r11 * o10 + r12 * o20, r10 * o01 + r11 * o11 + r12 * o21, r10 * o02 + r11 * o12 + r12 * o22,
         r20 * o00 + r21 * o10 + r22 * o20, r20 * o01 + r21 * o11 + r22 * o21, r20 * o02 + r21 * o12 + r22 * o22,
     )  # fmt: skip
-
-
-def _rotate(ux, uy, uz, kx, ky, kz, c, s) -> tuple[float, float, float]:
-    """``u`` rotated about unit ``k`` by the angle of cosine ``c``, sine ``s`` (Rodrigues)."""
-    ku = (kx * ux + ky * uy + kz * uz) * (1.0 - c)
-    return (
-        ux * c + (ky * uz - kz * uy) * s + kx * ku,
-        uy * c + (kz * ux - kx * uz) * s + ky * ku,
-        uz * c + (kx * uy - ky * ux) * s + kz * ku,
-    )
 
 
 def _vec3(value: Sequence[float] | np.ndarray, what: str) -> tuple[float, float, float]:
