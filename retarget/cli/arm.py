@@ -1,10 +1,10 @@
 """``retarget arm``: show, check and query an arm description.
 
-Loads a bundled arm, a TOML arm file or a URDF (with its ``.servos.toml``), which
+Loads a bundled arm, a TOML arm file or a URDF (with its .servos.toml file), which
 validates it, and prints its joints with axes, limits, velocities and servos, the
-gripper, the home and rest poses, the reach and the tool point at home.  ``--list``
-lists the bundled arms; ``--ik X,Y,Z`` solves the CCD IK for a point in the base
-frame (metres) and prints the joint angles in degrees; ``--json`` prints JSON.
+gripper, the home and rest poses, the reach and the tool point at home.  --list
+lists the bundled arms; --ik X,Y,Z solves the CCD IK for a point in the base
+frame (metres) and prints the joint angles in degrees; --json prints JSON.
 """
 
 from __future__ import annotations
@@ -41,7 +41,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--tip", help="URDF tip link (the tool point), when the chain has several leaves")
     parser.add_argument("--list", action="store_true", help="list the bundled arms and exit")
     parser.add_argument("--ik", metavar="X,Y,Z", help="solve IK for this point (metres, base frame)")
-    parser.add_argument("--from", dest="start", choices=("home", "rest"), default="home", help="IK start pose")
+    parser.add_argument(
+        "--from", dest="start", choices=("home", "rest"), default="home", help="IK start pose (default home)"
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     return parser
 
