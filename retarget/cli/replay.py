@@ -55,6 +55,9 @@ def add_clip_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--speed", default="1", metavar="F", help="playback speed factor (default 1)")
     parser.add_argument("--start", default=None, metavar="T", help="clip window start: seconds, or frames as 300f")
     parser.add_argument("--end", default=None, metavar="T", help="clip window end: seconds, or frames as 300f")
+    parser.add_argument(
+        "--velocity-scale", default="1", metavar="F", help="fraction of each joint's max speed (default 1)"
+    )
 
 
 def add_mapping_arguments(parser: argparse.ArgumentParser) -> None:
@@ -78,7 +81,6 @@ def add_mapping_arguments(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--origin", default=None, metavar="X,Y,Z", help="where the human shoulder lands, metres, base frame")
     g.add_argument("--floor", default=None, metavar="Z", help="lowest target height, metres")
     g.add_argument("--orientation-weight", default=None, metavar="W", help="0 = position only; > 0 hand orientation")
-    g.add_argument("--velocity-scale", default="1", metavar="F", help="fraction of each joint's max speed (default 1)")
 
 
 _TIME = re.compile(r"^\s*(\d+(?:\.\d*)?|\.\d+)\s*(s|f)?\s*$", re.IGNORECASE)
