@@ -25,6 +25,8 @@ _LAZY = {
     "Arm": "retarget.arm",
     "solve_ik": "retarget.ik",
     "IKResult": "retarget.ik",
+    "CCDSolver": "retarget.ik",
+    "Weighting": "retarget.ik",
 }
 
 __all__ = ["BusError", "BvhError", "ConfigError", "RetargetError", "__version__", *_LAZY]
