@@ -129,6 +129,10 @@ class Link:
             self.alerts.add(reply.id)
         return reply
 
+    def _retrying(self, what: str, ids: Iterable[int], reason: str) -> None:
+        self.retry_count += 1
+        log.debug("servo %s: %s: %s; retrying", ", ".join(map(str, ids)), what, reason)
+
     def _fail(self, message: str, ids: Iterable[int]) -> BusError:
         self.error_count += 1
         return BusError(message, ids=sorted(ids))
@@ -151,7 +155,7 @@ class Link:
         """PING with retries; None when the servo never answered."""
         for attempt in range(self.retries + 1):
             if attempt:
-                self.retry_count += 1
+                self._retrying("PING", [dxl_id], "no status packet")
             reply = self.ping_once(dxl_id)
             if reply is not None:
                 return reply
@@ -162,7 +166,7 @@ class Link:
         last = ""
         for attempt in range(self.retries + 1):
             if attempt:
-                self.retry_count += 1
+                self._retrying(f"reading {what or address}", [dxl_id], last)
             data, result, error = self.ph.readTxRx(self.port, dxl_id, address, length)
             if result == COMM_SUCCESS and len(data) == length:
                 reply = self._note(Reply(dxl_id, error, bytes(data)))
@@ -182,7 +186,7 @@ class Link:
         last = ""
         for attempt in range(self.retries + 1):
             if attempt:
-                self.retry_count += 1
+                self._retrying(f"writing {what or address}", [dxl_id], last)
             result, error = self.ph.writeTxRx(self.port, dxl_id, address, len(data), list(data))
             if result == COMM_SUCCESS:
                 reply = self._note(Reply(dxl_id, error, b""))
@@ -216,10 +220,12 @@ class Link:
             raise self._fail(f"{name} writing {reg.name} = {int(value)}", [dxl_id])
 
     def reboot(self, dxl_id: int) -> None:
+        """REBOOT with retries (the servo answers, then restarts: it is silent for a moment after)."""
+        result = COMM_SUCCESS
         for attempt in range(self.retries + 1):
             if attempt:
-                self.retry_count += 1
-            result, error = self.ph.reboot(self.port, dxl_id)
+                self._retrying("REBOOT", [dxl_id], comm_result_name(result))
+            result, _ = self.ph.reboot(self.port, dxl_id)
             if result == COMM_SUCCESS:
                 return
         raise self._fail(f"{comm_result_name(result)} to REBOOT", [dxl_id])
@@ -314,12 +320,12 @@ class Link:
         errors: dict[int, str] = {}
         for attempt in range(self.retries + 1):
             if attempt:
-                self.retry_count += 1
+                self._retrying(what or "a group read", sorted(missing | set(errors)), "no reply or a status error")
             if use_fast:
                 got = self.fast_sync_read_once(ids, address, length)
                 if got is None:  # one packet for all: repeat as a plain read, which names the silent servo
                     self.fast_failures += 1
-                    self.retry_count += 1
+                    self._retrying(what or "a group read", ids, "FAST_SYNC_READ failed; as a plain SYNC_READ")
                     use_fast = False
                     got = self.sync_read_once(ids, address, length)
                 else:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import importlib
 import logging
+import socket
 
 import serial
 from dynamixel_sdk import PortHandler
@@ -52,6 +53,17 @@ def _register_url_handlers(port_name: str) -> None:
             raise BusError(f"cannot open {port_name!r}: the simulator package 'sim' is not importable ({exc})") from exc
 
 
+def _no_delay(ser: serial.SerialBase) -> None:
+    """TCP_NODELAY on a ``socket://`` port (pyserial leaves Nagle on).
+
+    Without it a SYNC_WRITE (no reply) followed by a READ is the classic write-write-read pattern: the READ
+    waits for the ACK of the first segment, which the peer delays ~40 ms, past the SDK's 34 ms timeout.
+    """
+    sock = getattr(ser, "_socket", None)
+    if isinstance(sock, socket.socket) and sock.family in (socket.AF_INET, socket.AF_INET6):
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+
+
 class UrlPortHandler(PortHandler):
     """``dynamixel_sdk.PortHandler`` opened through ``serial.serial_for_url``; everything else is the SDK's."""
 
@@ -70,6 +82,7 @@ class UrlPortHandler(PortHandler):
             )
         except (serial.SerialException, OSError, ValueError) as exc:
             raise BusError(f"cannot open port {self.port_name!r} at {self.baudrate} baud: {exc}") from exc
+        _no_delay(self.ser)
         self.is_open = True
         self.ser.reset_input_buffer()
         self.tx_time_per_byte = (1000.0 / self.baudrate) * 10.0

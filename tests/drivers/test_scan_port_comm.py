@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import signal
+import socket
 import subprocess
 import sys
 
@@ -20,6 +21,7 @@ from drivers.scan import ALL_BAUDS, parse_ids, scan
 from retarget.bus import ShutdownMode
 from retarget.cli import main
 from retarget.errors import BusError, ConfigError
+from sim.server import TcpServer
 
 # ---------------------------------------------------------------------------------------------- port
 
@@ -31,6 +33,20 @@ def test_open_port_opens_a_sim_url(url):
     finally:
         port.closePort()
     assert not port.is_open
+
+
+def test_socket_port_has_nagle_off(sim_bus):
+    """A SYNC_WRITE then a READ must not wait for a delayed ACK (~40 ms, past the SDK's 34 ms timeout)."""
+    with TcpServer(sim_bus) as server:
+        port = open_port(server.url, 1_000_000)
+        try:
+            assert port.ser._socket.getsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY) == 1
+            link = Link(port, retries=0)
+            for _ in range(3):
+                link.sync_write(116, 4, {1: (2048).to_bytes(4, "little")})
+                link.read(1, 132, 4)  # raises when the READ sat behind Nagle's algorithm
+        finally:
+            port.closePort()
 
 
 @pytest.mark.parametrize(
