@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 import re
 from os import PathLike
 from pathlib import Path
@@ -54,30 +55,62 @@ def load_bvh(path: str | PathLike[str]) -> Motion:
     and ``OSError`` for one that cannot be read.
     """
     p = Path(path)
-    data = p.read_bytes()
-    return _parse(data, path=p)
+    with open(p, "rb") as f:
+        size = os.fstat(f.fileno()).st_size
+        buf = _buffer(size)
+        got = f.readinto(memoryview(buf)[_PAD : _PAD + size])
+        grown = f.read(1)
+    if got != size or grown:  # changed while we read it: take what is there now
+        return parse_bvh(p.read_bytes(), path=p)
+    return _parse(buf, size, path=p)
 
 
 def parse_bvh(text: str | bytes, *, path: str | PathLike[str] | None = None) -> Motion:
     """Read BVH from a string (or bytes); ``path`` only names the source in errors and ``Motion.path``."""
     data = text.encode("utf-8") if isinstance(text, str) else bytes(text)
-    return _parse(data, path=None if path is None else Path(path))
+    buf = _buffer(len(data))
+    buf[_PAD : _PAD + len(data)] = np.frombuffer(data, dtype=np.uint8)
+    return _parse(buf, len(data), path=None if path is None else Path(path))
 
 
 # --------------------------------------------------------------------------------------------- whole file
 
+_PAD = bvh_numbers.PAD
+_HEAD = 1 << 16  # bytes tried first for the header
 
-def _parse(data: bytes, *, path: Path | None) -> Motion:
-    if data.startswith(b"\xef\xbb\xbf"):
-        data = data[3:]
-    if not data.strip():
+
+def _buffer(size: int) -> np.ndarray:
+    """A uint8 buffer for ``size`` bytes of file at ``[_PAD : _PAD + size]``, padded with spaces both sides."""
+    buf = np.empty(size + 2 * _PAD, dtype=np.uint8)
+    buf[:_PAD] = 32
+    buf[_PAD + size :] = 32
+    return buf
+
+
+def _parse(buf: np.ndarray, size: int, *, path: Path | None) -> Motion:
+    """Parse the file held in ``buf[_PAD : _PAD + size]`` (see :func:`_buffer`); may modify ``buf``."""
+    text = buf[_PAD : _PAD + size]
+    if size >= 3 and bytes(text[:3]) == b"\xef\xbb\xbf":
+        text[:3] = 32  # a UTF-8 byte order mark: blank it, keeping line numbers
+    head = bytes(text[:_HEAD])
+    if not head.strip() and not (text > 32).any():
         raise BvhError("Expected a BVH file starting with HIERARCHY, got an empty file", path=path, line=1)
-    _reject_binary(data, path)
-    if b"\r" in data:
-        data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
-    header = _Header(data, path)
-    header.parse()
-    channels = _read_frames(data, header, path)
+    _reject_binary(text, head, path)
+    if (text == 13).any():
+        data = bytes(text).replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+        return parse_bvh(data, path=path)
+    header = _Header(head, path)
+    try:
+        header.parse()
+        complete = header.pos <= len(head) or len(head) == size
+    except BvhError:
+        if len(head) == size:
+            raise
+        complete = False
+    if not complete:  # a header longer than the first bytes tried
+        header = _Header(bytes(text), path)
+        header.parse()
+    channels = _read_frames(buf, _PAD + header.data_start, size - header.data_start, header, path)
     return Motion(
         joint_names=tuple(j.name for j in header.joints),
         parents=np.array([j.parent for j in header.joints], dtype=np.intp),
@@ -90,13 +123,13 @@ def _parse(data: bytes, *, path: Path | None) -> Motion:
     )
 
 
-def _reject_binary(data: bytes, path: Path | None) -> None:
-    nul = data.find(b"\x00")
-    head = data[:4096]
+def _reject_binary(text: np.ndarray, head: bytes, path: Path | None) -> None:
+    """A NUL byte anywhere, or many control characters at the start, mean this is not a text file."""
     control = sum(head.count(bytes([c])) for c in (*range(1, 9), *range(14, 32)))
-    if nul >= 0 or control > len(head) // 20:
-        where = nul if nul >= 0 else 0
-        line = data.count(b"\n", 0, where) + 1
+    has_nul = bool((text == 0).any())
+    if has_nul or control > len(head) // 20:
+        where = int(np.argmax(text == 0)) if has_nul else 0
+        line = int(np.count_nonzero(text[:where] == 10)) + 1
         raise BvhError("Expected a text BVH file, got binary data", path=path, line=line)
 
 
@@ -335,12 +368,11 @@ def _show(text: str, limit: int = 60) -> str:
 # ----------------------------------------------------------------------------------------------- MOTION
 
 
-def _read_frames(data: bytes, header: _Header, path: Path | None) -> np.ndarray:
-    """``(n_frames, n_channels)`` float64 from the frame lines; every count and value checked."""
-    block = data[header.data_start :]
+def _read_frames(buf: np.ndarray, base: int, length: int, header: _Header, path: Path | None) -> np.ndarray:
+    """``(n_frames, n_channels)`` float64 from the frame lines in ``buf[base : base + length]``; every count and
+    value checked."""
     n_frames, n_channels, first_line = header.n_frames, header.n_channels, header.data_first_line
-    padded = bvh_numbers.pad_block(block)
-    b = padded[bvh_numbers.PAD : bvh_numbers.PAD + len(block)]
+    b = buf[base : base + length]
     starts, ends = bvh_numbers.token_bounds(b)
     breaks = np.flatnonzero(b == 10)  # line i of the block ends at breaks[i]
     line_starts = np.concatenate(([0], breaks + 1))
@@ -364,8 +396,11 @@ def _read_frames(data: bytes, header: _Header, path: Path | None) -> np.ndarray:
         )
         problem = extra if problem is None or extra[0] < problem[0] else problem
 
-    values, slow = bvh_numbers.parse_tokens(padded, starts, ends)
-    bad_value = _read_slow_tokens(block, starts, ends, values, slow)
+    if starts.size:
+        values, slow = bvh_numbers.parse_tokens(buf, base, starts, ends)
+    else:
+        values, slow = np.zeros(0), np.zeros(0, dtype=bool)
+    bad_value = _read_slow_tokens(b, starts, ends, values, slow)
     if bad_value is not None:
         token, message = bad_value
         candidate = (line_of(token), message)
@@ -373,11 +408,11 @@ def _read_frames(data: bytes, header: _Header, path: Path | None) -> np.ndarray:
             problem = candidate
     if problem is None and not np.isfinite(values).all():
         token = int(np.flatnonzero(~np.isfinite(values))[0])
-        problem = (line_of(token), f"Expected a finite number, got {block[starts[token] : ends[token]].decode()!r}")
+        problem = (line_of(token), f"Expected a finite number, got {bytes(b[starts[token] : ends[token]]).decode()!r}")
     if problem is not None:
         raise BvhError(problem[1], path=path, line=problem[0])
     if filled.size < n_frames:
-        n_lines = breaks.size + (1 if block and not block.endswith(b"\n") else 0)
+        n_lines = breaks.size + (1 if length and b[-1] != 10 else 0)
         raise BvhError(
             f"Expected {n_frames} frame lines (Frames: {n_frames}), got {filled.size}: the file ends early",
             path=path,
@@ -395,7 +430,7 @@ def _read_slow_tokens(block, starts, ends, values, slow) -> tuple[int, str] | No
     index = np.flatnonzero(slow)
     if index.size == 0:
         return None
-    words = [block[starts[i] : ends[i]] for i in index.tolist()]
+    words = [bytes(block[s:e]) for s, e in zip(starts[index].tolist(), ends[index].tolist(), strict=True)]
     if _NUMBERS_RE.fullmatch(b"\n".join(words)):
         values[index] = np.array(words).astype(np.float64)
         return None

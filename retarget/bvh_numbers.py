@@ -89,9 +89,11 @@ def _anchors(b: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> tuple[np.nd
     return anchors, np.bincount(owner, minlength=starts.size) > 1
 
 
-def parse_tokens(padded: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Values of the tokens ``block[starts[i]:ends[i]]`` of the block inside ``padded`` (see :func:`pad_block`).
+def parse_tokens(buf: np.ndarray, base: int, starts: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Values of the tokens ``buf[base + starts[i] : base + ends[i]]``.
 
+    ``buf``: uint8 with at least 8 bytes before ``base`` and ``PAD`` bytes
+    after the last token (any content: bytes outside a token are masked).
     Returns ``(values (n,) float64, needs_slow (n,) bool)``; ``values`` is
     garbage where ``needs_slow``.
     """
@@ -100,15 +102,17 @@ def parse_tokens(padded: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> tu
     needs_slow = np.empty(n, dtype=bool)
     if n == 0:
         return values, needs_slow
-    b = padded[PAD : padded.size - PAD]
+    if base < 8 or buf.size < base + int(ends[-1]) + PAD:
+        raise ValueError(f"Expected 8 bytes before and {PAD} after the tokens, got {base} and {buf.size - base}")
+    b = buf[base : base + int(ends[-1])]
     anchors, several_dots = _anchors(b, starts, ends)
     first = b[starts]
     negative = first == 45
     signed = negative | (first == 43)
     int_len = (anchors - starts - signed).astype(np.uint64)
     frac_len = np.maximum(ends - anchors - 1, 0).astype(np.uint64)
-    words = np.ndarray((padded.size - 7,), dtype="<u8", buffer=padded, strides=(1,))
-    at = anchors + PAD
+    words = np.ndarray((buf.size - 7,), dtype="<u8", buffer=buf, strides=(1,))
+    at = anchors + base
     for s in range(0, n, CHUNK):
         part = slice(s, s + CHUNK)
         a = at[part]

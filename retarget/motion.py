@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from retarget import skeleton
-from retarget.rotations import AXIS_INDEX, compose_cos_sin
+from retarget.bvh_fk import Pose, forward_kinematics
 
 
 @dataclass(frozen=True)
@@ -86,10 +86,6 @@ class ArmChain:
         return float(np.median(upper)), float(np.median(fore))
 
 
-#: Elements per vector step of the FK: temporaries of this many doubles stay under glibc's mmap threshold.
-_FRAMES_PER_STEP = 12_000
-
-
 def _readonly(a: np.ndarray) -> np.ndarray:
     a.flags.writeable = False
     return a
@@ -142,14 +138,7 @@ class Motion:
         self.channels = _readonly(channels)
         self.frame_time = float(frame_time)
         self.path = path
-        self._positions: np.ndarray | None = None
-        self._rotations: np.ndarray | None = None
-        self._world: tuple[np.ndarray, np.ndarray] | None = None  # joint-major (J, n, 3, 3), (J, n, 3)
-        self._world_full = False
-        self._has_children = np.zeros(n, dtype=bool)
-        self._has_children[parents[parents >= 0]] = True
-        for e in end_sites:
-            self._has_children[e.parent] = True
+        self._cached_pose: Pose | None = None
 
     # ------------------------------------------------------------------------------------------ info
     @property
@@ -209,102 +198,37 @@ class Motion:
     # -------------------------------------------------------------------------------------------- FK
     def positions(self) -> np.ndarray:
         """``(n_frames, n_joints, 3)`` float64 global joint positions, file units, BVH world frame."""
-        if self._positions is None:
-            _, world_pos = self._fk(full=False)
-            self._positions = _readonly(world_pos.transpose(1, 0, 2))
-        return self._positions
+        return self._pose(rotations=False).positions
 
     def global_transforms(self) -> tuple[np.ndarray, np.ndarray]:
         """``(rotations (n_frames, n_joints, 3, 3), positions (n_frames, n_joints, 3))``: joint frame -> world."""
-        if self._rotations is None:
-            world_rot, _ = self._fk(full=True)
-            self._rotations = _readonly(world_rot.transpose(1, 0, 2, 3))
-        return self._rotations, self.positions()
+        pose = self._pose(rotations=True)
+        return pose.rotations, pose.positions  # type: ignore[return-value]
 
     def end_site_positions(self) -> np.ndarray:
         """``(n_frames, n_end_sites, 3)`` float64 global End Site positions, file units."""
-        out = np.empty((self.n_frames, len(self.end_sites), 3))
-        if not self.end_sites:
-            return _readonly(out)
-        world_rot, world_pos = self._fk(full=False)
-        for k, e in enumerate(self.end_sites):
-            out[:, k] = world_pos[e.parent] + world_rot[e.parent] @ np.asarray(e.offset)
-        return _readonly(out)
+        return self._pose(rotations=False).end_sites
 
-    def _fk(self, *, full: bool) -> tuple[np.ndarray, np.ndarray]:
-        """Joint-major world rotations ``(J, n, 3, 3)`` and positions ``(J, n, 3)``.
-
-        With ``full=False`` rotations of joints without children or End Sites
-        are left uncomputed (positions do not need them).
-        """
-        if self._world is not None and (not full or self._world_full):
-            return self._world
-        n, nj = self.n_frames, self.n_joints
-        need_rot = np.ones(nj, dtype=bool) if full else self._has_children
-        local_rot = self._local_rotations(need_rot)
-        world_rot = np.empty((nj, n, 3, 3))
-        world_pos = np.empty((nj, n, 3))
-        columns = self.channels.T  # (C, n) view
-        for j in range(nj):
-            p = self.parents[j]
-            t = self._local_translation(j, columns)
-            if p < 0:
-                world_pos[j] = t
-                if need_rot[j]:
-                    world_rot[j] = local_rot[j]
-                continue
-            if t.ndim == 1:
-                np.matmul(world_rot[p], t, out=world_pos[j])
-            else:
-                np.einsum("nij,nj->ni", world_rot[p], t, out=world_pos[j])
-            world_pos[j] += world_pos[p]
-            if need_rot[j]:
-                np.matmul(world_rot[p], local_rot[j], out=world_rot[j])
-        self._world = (world_rot, world_pos)
-        self._world_full = full
-        return self._world
-
-    def _local_translation(self, j: int, columns: np.ndarray) -> np.ndarray:
-        """``(3,)`` OFFSET, or ``(n, 3)`` when position channels replace some of its components."""
-        lay = self.layout[j]
-        axes = lay.position_axes
-        if not axes:
-            return self.offsets[j]
-        t = np.empty((self.n_frames, 3))
-        t[:] = self.offsets[j]
-        for axis, col in zip(axes, lay.columns("position"), strict=True):
-            t[:, AXIS_INDEX[axis]] = columns[col]
-        return t
-
-    def _local_rotations(self, need: np.ndarray) -> np.ndarray:
-        """``(J, n, 3, 3)`` local rotations (garbage where not ``need``), grouped by rotation order.
-
-        Runs over slices of ``_JOINTS_PER_STEP`` joints so the temporaries stay
-        small (large ones cost page faults on every call).
-        """
-        n, nj = self.n_frames, self.n_joints
-        out = np.empty((nj, n, 3, 3))
-        groups: dict[str, list[int]] = {}
-        for j in range(nj):
-            if need[j]:
-                groups.setdefault(self.layout[j].rotation_order, []).append(j)
-        columns = self.channels.T
-        step = max(1, _FRAMES_PER_STEP // max(n, 1))
-        for order, joints in groups.items():
-            axes = [AXIS_INDEX[a] for a in order]
-            for s in range(0, len(joints), step):
-                part = joints[s : s + step]
-                contiguous = part[-1] - part[0] == len(part) - 1
-                target = out[part[0] : part[-1] + 1] if contiguous else None
-                if not order:
-                    (target if contiguous else out[part])[...] = np.eye(3)
-                    continue
-                cols = np.array([self.layout[j].columns("rotation") for j in part])  # (k, m)
-                angles = np.radians(columns[cols.T])  # (m, k, n)
-                result = compose_cos_sin(axes, np.cos(angles), np.sin(angles), out=target)
-                if not contiguous:
-                    out[part] = result
-        return out
+    def _pose(self, *, rotations: bool) -> Pose:
+        pose = self._cached_pose
+        if pose is None or (rotations and pose.rotations is None):
+            pose = forward_kinematics(
+                self.parents,
+                self.offsets,
+                [lay.names for lay in self.layout],
+                [lay.first_column for lay in self.layout],
+                self.channels,
+                [e.parent for e in self.end_sites],
+                [e.offset for e in self.end_sites],
+                rotations=rotations,
+            )
+            for array in (pose.positions, pose.end_sites, pose.rotations):
+                if array is not None:
+                    _readonly(array)
+            if self._cached_pose is not None:  # keep the arrays already handed out
+                pose = Pose(self._cached_pose.positions, self._cached_pose.end_sites, pose.rotations)
+            self._cached_pose = pose
+        return pose
 
     # -------------------------------------------------------------------------------------- arms
     def arm_points(self, side: str, *, names: tuple[str, str, str] | None = None) -> ArmChain:

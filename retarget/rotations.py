@@ -83,15 +83,24 @@ def compose_cos_sin(
     if not axes:
         out[...] = np.eye(3)
         return out
-    # A symbolic 3x3 matrix: entries are None (0), 1.0 (one), or arrays.
-    mat = _elementary(axes[0], cos[0], sin[0])
-    for m in range(1, len(axes)):
-        mat = _symbolic_matmul(mat, _elementary(axes[m], cos[m], sin[m]))
+    mat = compose_entries(axes, cos, sin)
     for i in range(3):
         for k in range(3):
             entry = mat[i][k]
             out[..., i, k] = 0.0 if entry is None else entry
     return out
+
+
+def compose_entries(axes: Sequence[int], cos: Sequence[np.ndarray], sin: Sequence[np.ndarray]) -> list[list]:
+    """The 3x3 product of :func:`compose_cos_sin` as nested lists of entries: ``None`` (zero), ``1.0`` or arrays.
+
+    For callers that store matrices entry-major (``(3, 3, ...)``).  ``axes``
+    must not be empty.
+    """
+    mat = _elementary(axes[0], cos[0], sin[0])
+    for m in range(1, len(axes)):
+        mat = _symbolic_matmul(mat, _elementary(axes[m], cos[m], sin[m]))
+    return mat
 
 
 def _elementary(a: int, c: np.ndarray, s: np.ndarray) -> list[list]:

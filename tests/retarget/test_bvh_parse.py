@@ -126,7 +126,7 @@ def test_bulk_reader_is_bit_identical_to_float(seed):
     padded = bvh_numbers.pad_block(block)
     starts, ends = bvh_numbers.token_bounds(padded[bvh_numbers.PAD : bvh_numbers.PAD + len(block)])
     assert starts.size == len(tokens)
-    values, slow = bvh_numbers.parse_tokens(padded, starts, ends)
+    values, slow = bvh_numbers.parse_tokens(padded, bvh_numbers.PAD, starts, ends)
     want = np.array([float(t) for t in tokens])
     fast = ~slow
     assert fast.mean() > 0.6  # the fast path does the bulk of the work
@@ -144,7 +144,7 @@ def test_bulk_reader_flags_what_it_cannot_prove(token):
     block = f"1.5 {token} 2.5\n".encode()
     padded = bvh_numbers.pad_block(block)
     starts, ends = bvh_numbers.token_bounds(padded[bvh_numbers.PAD : bvh_numbers.PAD + len(block)])
-    values, slow = bvh_numbers.parse_tokens(padded, starts, ends)
+    values, slow = bvh_numbers.parse_tokens(padded, bvh_numbers.PAD, starts, ends)
     assert slow.tolist() == [False, True, False]
     assert values[0] == 1.5 and values[2] == 2.5
 
