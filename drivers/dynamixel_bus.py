@@ -576,7 +576,8 @@ class DynamixelBus:
         rest = np.clip(self.arm.rest, self.lower, self.upper)
         present = self._read_positions_unchecked()
         if self.profile is Profile.TIME:
-            duration = float(np.max(np.abs(rest - present))) / self.rest_speed
+            # ramps of a quarter of the move each: the cruise speed is distance / (0.75 * duration)
+            duration = float(np.max(np.abs(rest - present))) / (0.75 * self.rest_speed)
             pv = int(min(units.seconds_to_ms(duration), MAX_PROFILE_MS))
             values = dict.fromkeys((s.id for s in self._joint_servos), pv)
             accel = dict.fromkeys(values, pv // 4)
