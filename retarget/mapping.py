@@ -93,7 +93,7 @@ _UP_CHOICES = ("+y", "-y", "+z", "-z", "+x", "-x")
 _ROBOT_FORWARD_CHOICES = ("auto", "+x", "-x", "+y", "-y")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class MappingConfig:
     """How human motion maps onto one arm.  Build with :meth:`from_table`; all fields keyword-only.
 
