@@ -24,6 +24,7 @@ import numpy as np
 from retarget.teleop_input import Target, TargetBounds, TargetRejected, _Source
 
 if TYPE_CHECKING:
+    from retarget.arm import Arm
     from retarget.control import TickRecord
     from retarget.teleop_input import TargetGate
 
@@ -136,13 +137,14 @@ _CURSES_KEYS = {
 class TerminalUI:
     """Curses screen driven from the loop's ``on_tick``; ``stop`` is called when the user quits."""
 
-    def __init__(self, screen: Any, source: KeySource, joint_names: tuple[str, ...], stop: Callable[[], None]):
+    def __init__(self, screen: Any, source: KeySource, arm: Arm, stop: Callable[[], None]):
         import curses
 
         self.curses = curses
         self.screen = screen
         self.source = source
-        self.joint_names = joint_names
+        self.arm = arm
+        self.joint_names = arm.joint_names
         self.stop = stop
         self.reached: np.ndarray | None = None
         self._next_draw = -1.0
@@ -163,12 +165,14 @@ class TerminalUI:
             if self.source.press(_CURSES_KEYS.get(name, name)) is Action.QUIT:
                 self.stop()
 
-    def __call__(self, record: TickRecord, reached: np.ndarray | None = None) -> None:
+    def __call__(self, record: TickRecord) -> None:
         self.poll_keys()
-        if reached is not None:
-            self.reached = reached
         if record.time >= self._next_draw:
+            from retarget.teleop import tool_point
+
             self._next_draw = record.time + 0.1
+            q = record.q_present if record.q_present is not None else record.q_cmd
+            self.reached = tool_point(self.arm, q)
             self.draw(record)
 
     def draw(self, record: TickRecord) -> None:
