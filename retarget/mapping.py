@@ -27,6 +27,21 @@ reachable point and counted in ``Targets.clamped``.
 Optionally (``orientation_weight > 0``) the hand's orientation becomes a tool
 orientation: tool x along the hand bone, tool z the body's up in the rest pose.
 
+The ``[mapping]`` table of an arm file (every key optional; CLI flags override)::
+
+    [mapping]
+    side = "right"                # the human arm that drives the robot: left | right
+    forward = "auto"              # body forward: auto (torso, per frame) | +z | -z | +x | -x
+    up = "+y"                     # the BVH up axis
+    robot_forward = "auto"        # the robot's forward in its base frame: auto (home pose) | +x | -x | +y | -y
+    arm_scale = 0.4               # human arm length -> this fraction of the robot's reach
+    origin = [0.2, 0.0, 0.36]     # metres, base frame, where the shoulder lands (default: from the reach)
+    max_reach = 0.95              # workspace shell around the shoulder pivot, fractions of the reach
+    min_reach = 0.2
+    floor = 0.03                  # lowest target height, metres
+    orientation_weight = 0.0      # > 0: follow the hand's orientation too
+    joint_weights = { forearm_roll = 0.001 }   # IK weights by joint (or a list, one per joint)
+
 Units: BVH file units in, metres and radians out.  This module is math only
 (it imports neither drivers, sim nor serial).
 """
