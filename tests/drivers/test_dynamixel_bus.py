@@ -7,10 +7,12 @@ import math
 import numpy as np
 import pytest
 
+import retarget
 import sim
 from drivers import units
 from drivers.control_table import EEPROM_END, HardwareError, Instruction
 from drivers.dynamixel_bus import DynamixelBus, Profile, plan_servos
+from retarget.arm_config import list_arms
 from retarget.bus import Bus, ShutdownMode
 from retarget.errors import BusError, ConfigError
 
@@ -461,3 +463,21 @@ def test_status_return_level_is_restored(make_bus, url, sim_bus, level):
     sim_bus.servo(4).set("Status Return Level", level)
     make_bus(url, shutdown=ShutdownMode.OFF).connect()
     assert sim_bus.servo(4).get("Status Return Level") == 2 and sim_bus.servo(4).get("Torque Enable") == 1
+
+
+@pytest.mark.parametrize("name", list_arms())
+def test_every_bundled_arm_connects_moves_and_rests(name, clock):
+    arm = retarget.load_arm(name)
+    simulated = sim.SimBus.from_arm(arm, clock=clock)
+    url = sim.register(f"drivers-arm-{name}", simulated)
+    try:
+        with DynamixelBus(arm, url, clock=clock, check_latency=False) as bus:
+            bus.write_goals(arm.home)
+            clock.advance(10.0)
+            np.testing.assert_allclose(
+                bus.read_positions(), np.clip(arm.home, bus.lower, bus.upper), atol=units.RAD_PER_TICK
+            )
+            assert bus.status().retries == 0
+        assert set(torques(simulated).values()) == {0}
+    finally:
+        sim.unregister(f"drivers-arm-{name}")
