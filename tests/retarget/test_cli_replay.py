@@ -199,3 +199,26 @@ def test_help_has_examples(capsys):
     assert info.value.code == 0
     out = capsys.readouterr().out
     assert "examples:" in out and "retarget replay --fast --json" in out and "--telemetry" in out
+
+
+def test_the_arm_files_mapping_table_is_used_and_checked(capsys, tmp_path):
+    source = retarget.load_arm("wx250s").source.read_text()
+    good = tmp_path / "wx_left.toml"
+    good.write_text(source + '\n[mapping]\nside = "left"\narm_scale = 0.3\n')
+
+    def first_target(*extra: str) -> list[str]:
+        code, out, err = replay(capsys, "--arm", str(good), "--dry-run", "--fast", "--end", "0.1", "--telemetry", "-",
+                                *extra)  # fmt: skip
+        assert code == 0, err
+        row = next(csv.DictReader(out.splitlines()))
+        return [row["target_x_m"], row["target_y_m"], row["target_z_m"]]
+
+    left = first_target()
+    assert first_target("--side", "left") == left
+    assert first_target("--side", "right") != left  # a flag overrides the file
+    bad = tmp_path / "wx_bad.toml"
+    bad.write_text(source + '\n[mapping]\nside = "up"\n')
+    for extra in ([], ["--side", "right"]):  # a flag does not hide a broken file
+        code, out, err = replay(capsys, "--arm", str(bad), "--dry-run", "--fast", "--end", "1", *extra)
+        assert code == 2
+        assert err.strip() == f"retarget: {bad}: mapping.side: Expected 'left' or 'right' (got 'up')"
