@@ -16,7 +16,14 @@ connect():
      bit 2 = time-based profile when chosen), Homing Offset = 0, Max/Min Position Limit from the joint limits
      (the servo's own second line of defence), Velocity Limit, Return Delay Time; then Profile Acceleration and
      Profile Velocity (RAM);
-  4. set each Goal Position to the present position (so enabling torque does not jump), then torque on.
+     Status Return Level goes back to 2 first, so every write is acknowledged;
+  4. check every shadow reads the same angle as its primary (else they would fight under torque), set each
+     Goal Position to its joint's present angle (so enabling torque does not jump), then torque on, all or
+     nothing.
+
+Faults: a servo that stays silent after ``retries`` repeats, or raises a hardware alert, makes the bus refuse
+further goals and raises BusError naming it; close() (or leaving the ``with`` block) then runs the shutdown
+sequence.  ``recover=True`` instead reboots an alerting servo and configures it again (at most 3 times each).
 
 Direction is applied by the servo (Drive Mode bit 0), as Interbotix does: every servo of a joint gets the same
 register value ``2048 + offset + q / RAD_PER_TICK`` in the same SYNC_WRITE and a reversed servo turns its shaft
@@ -55,6 +62,7 @@ _EEPROM_END = 56
 #: RAM block of read_state: Present Current/Load (126) .. Present Temperature (146), the same on every X model.
 _STATE_START = 126
 _STATE_END = 147
+_MAX_RECOVERIES = 3  #: reboots per servo and connect before a hardware error is final (recover=True)
 
 
 @dataclass(frozen=True)
@@ -210,6 +218,7 @@ class DynamixelBus:
         self._last_goal: np.ndarray | None = None
         self._ticks = 0
         self._hardware_errors: dict[int, tuple[str, ...]] = {}
+        self._recoveries: dict[int, int] = {}  #: servo ID -> reboots since connect
         self._firmware: dict[int, int] = {}
         self._use_fast = False
 
@@ -249,6 +258,7 @@ class DynamixelBus:
         self._link = self._last_link = Link(port, retries=self.retries)
         self._faulted = None
         self._hardware_errors = {}
+        self._recoveries = {}
         self._ticks = 0
         try:
             if self.check_latency:
@@ -466,19 +476,21 @@ class DynamixelBus:
             detail = ", ".join(next(iter(found.values())))
         else:
             detail = "; ".join(f"{i}: {', '.join(names)}" for i, names in found.items())
-        if self.recover:
+        if self.recover and all(self._recoveries.get(i, 0) < _MAX_RECOVERIES for i in ids):
             log.warning("hardware error (%s): rebooting and configuring again", detail)
+            for dxl_id in ids:
+                self._recoveries[dxl_id] = self._recoveries.get(dxl_id, 0) + 1
             for dxl_id in ids:
                 self._reboot_and_configure(self._servo(dxl_id))
             link.alerts.clear()
             return
         self._faulted = f"hardware error: {detail}"
         link.error_count += 1
-        raise BusError(
-            f"hardware error: {detail}; a servo shuts its torque off on these: power-cycle it or reboot it "
-            "(recover=True)",
-            ids=ids,
-        )
+        if self.recover:
+            advice = f"still failing after {_MAX_RECOVERIES} reboots: power it off and find the cause"
+        else:
+            advice = "a servo shuts its torque off on these: power-cycle it or reboot it (recover=True)"
+        raise BusError(f"hardware error: {detail}; {advice}", ids=ids)
 
     def _servo(self, dxl_id: int) -> ServoPlan:
         return next(s for s in self.servos if s.id == dxl_id)

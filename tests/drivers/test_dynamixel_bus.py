@@ -303,6 +303,18 @@ def test_recover_reboots_and_configures_again(make_bus, url, sim_bus, clock):
     assert bus.status().hardware_errors == {}
 
 
+def test_recover_gives_up_after_three_reboots(make_bus, url, sim_bus):
+    bus = make_bus(url, recover=True, shutdown=ShutdownMode.OFF)
+    bus.connect()
+    servo = sim_bus.servo(6)
+    for _ in range(3):
+        servo.trigger_hardware_error(HardwareError.OVERLOAD)
+        bus.read_positions()
+    servo.trigger_hardware_error(HardwareError.OVERLOAD)
+    with pytest.raises(BusError, match=r"^servo 6: hardware error: overload; still failing after 3 reboots"):
+        bus.read_positions()
+
+
 # ---------------------------------------------------------------------------------------------- shutdown
 
 
