@@ -368,9 +368,58 @@ def _show(text: str, limit: int = 60) -> str:
 # ----------------------------------------------------------------------------------------------- MOTION
 
 
+#: Bytes of MOTION block read per step: the temporaries of a step stay below glibc's mmap threshold, so they are
+#: recycled instead of page-faulted in afresh (which costs more than the arithmetic on this kind of machine).
+_WINDOW = 96 * 1024
+
+
 def _read_frames(buf: np.ndarray, base: int, length: int, header: _Header, path: Path | None) -> np.ndarray:
     """``(n_frames, n_channels)`` float64 from the frame lines in ``buf[base : base + length]``; every count and
-    value checked."""
+    value checked.  The common case (all counts right, all numbers plain decimals) is read window by window;
+    anything else is read again in one piece to find and report the first problem."""
+    channels = _read_frames_fast(buf, base, length, header.n_frames, header.n_channels)
+    if channels is not None:
+        return channels
+    return _read_frames_checked(buf, base, length, header, path)
+
+
+def _read_frames_fast(buf: np.ndarray, base: int, length: int, n_frames: int, n_channels: int) -> np.ndarray | None:
+    """The frames if every line and number is regular, else None (nothing is reported from here)."""
+    values = np.empty(n_frames * n_channels)
+    b = buf[base : base + length]
+    filled = lines = 0
+    lo = 0
+    while lo < length:
+        hi = min(lo + _WINDOW, length)
+        window = b[lo:hi]
+        breaks = np.flatnonzero(window == 10)
+        if hi < length:
+            if breaks.size == 0:
+                return None  # a line longer than a window: let the checked path deal with it
+            hi = lo + int(breaks[-1]) + 1
+            window = b[lo:hi]
+        starts, ends = bvh_numbers.token_bounds(window)
+        first_token = np.searchsorted(starts, np.concatenate(([0], breaks[breaks < hi - lo] + 1)))
+        counts = np.diff(np.append(first_token, starts.size))
+        counts = counts[counts > 0]
+        k = starts.size
+        if (counts != n_channels).any() or filled + k > values.size:
+            return None
+        if k:
+            part, slow = bvh_numbers.parse_tokens(buf, base + lo, starts, ends)
+            if slow.any():
+                return None
+            values[filled : filled + k] = part
+        filled += k
+        lines += counts.size
+        lo = hi
+    if lines != n_frames or filled != values.size or not np.isfinite(values).all():
+        return None
+    return values.reshape(n_frames, n_channels)
+
+
+def _read_frames_checked(buf: np.ndarray, base: int, length: int, header: _Header, path: Path | None) -> np.ndarray:
+    """Like :func:`_read_frames`, in one piece, reporting the first problem in file order."""
     n_frames, n_channels, first_line = header.n_frames, header.n_channels, header.data_first_line
     b = buf[base : base + length]
     starts, ends = bvh_numbers.token_bounds(b)

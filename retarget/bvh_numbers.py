@@ -30,13 +30,12 @@ import numpy as np
 _U = np.uint64
 _FULL = _U(0xFFFFFFFFFFFFFFFF)
 _ZEROS = _U(0x3030303030303030)  # "00000000"
-_THREES = _U(0x3333333333333333)
-_HIGHNIB = _U(0xF0F0F0F0F0F0F0F0)
-_SIXES = _U(0x0606060606060606)
+_SEVENTY_SIXES = _U(0x7676767676767676)
+_HIGH = _U(0x8080808080808080)
 _K1, _K2, _K3 = _U(2561), _U(6553601), _U(42949672960001)
-_M1, _M2, _M3 = _U(0x0F0F0F0F0F0F0F0F), _U(0x00FF00FF00FF00FF), _U(0x0000FFFF0000FFFF)
+_M2, _M3 = _U(0x00FF00FF00FF00FF), _U(0x0000FFFF0000FFFF)
 _E8 = _U(100_000_000)
-_0, _3, _4, _7, _8, _16, _32 = (_U(v) for v in (0, 3, 4, 7, 8, 16, 32))
+_0, _8, _16, _32 = (_U(v) for v in (0, 8, 16, 32))
 
 CHUNK = 8192  #: tokens per vector step
 PAD = 16  #: bytes of padding before the block (and after it) that :func:`parse_tokens` reads
@@ -66,16 +65,23 @@ def token_bounds(b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return bounds[0::2], bounds[1::2]
 
 
-def _swar8(w: np.ndarray) -> np.ndarray:
-    """Eight ASCII digits per word (first digit in the low byte) -> their integer value."""
-    v = ((w & _M1) * _K1) >> _8
-    v = ((v & _M2) * _K2) >> _16
-    return ((v & _M3) * _K3) >> _32
-
-
-def _digits_only(x: np.ndarray) -> np.ndarray:
-    """True where all 8 bytes of ``x`` are ASCII digits."""
-    return ((x & _HIGHNIB) | (((x + _SIXES) & _HIGHNIB) >> _4)) == _THREES
+def _digits(words: np.ndarray, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The 8-digit integers in ``words`` (first digit in the low byte; bytes outside ``keep`` read as 0), and a
+    non-zero flag word where a kept byte is not an ASCII digit."""
+    v = words ^ _ZEROS  # '0'..'9' -> 0..9
+    v &= keep
+    bad = v + _SEVENTY_SIXES  # a byte 0..9 stays below 0x80, 10..0x7F reaches it; >= 0x80 is caught by v itself
+    bad |= v
+    bad &= _HIGH
+    v *= _K1  # fold 8 digits: pairs, quads, then all eight (fast_float's parse_eight_digits)
+    v >>= _8
+    v &= _M2
+    v *= _K2
+    v >>= _16
+    v &= _M3
+    v *= _K3
+    v >>= _32
+    return v, bad
 
 
 def _anchors(b: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -108,30 +114,27 @@ def parse_tokens(buf: np.ndarray, base: int, starts: np.ndarray, ends: np.ndarra
     anchors, several_dots = _anchors(b, starts, ends)
     first = b[starts]
     negative = first == 45
-    signed = negative | (first == 43)
-    int_len = (anchors - starts - signed).astype(np.uint64)
-    frac_len = np.maximum(ends - anchors - 1, 0).astype(np.uint64)
+    divisor = 1e8 - 2e8 * negative  # -1e8 for a minus sign: an exact sign flip of the rounded quotient
+    int_len = anchors - starts - (negative | (first == 43))
+    frac_len = np.maximum(ends - anchors - 1, 0)
+    # tokens the 7 + 8 digit fast path cannot take, decided for all at once
+    np.greater(int_len, 7, out=needs_slow)
+    needs_slow |= frac_len > 8
+    needs_slow |= (int_len + frac_len) == 0
+    needs_slow |= several_dots
+    # shifts that keep the int_len bytes before the dot and the frac_len bytes after it
+    shift_i = ((8 - np.minimum(int_len, 8)) * 8).astype(np.uint64)
+    shift_f = ((8 - np.minimum(frac_len, 8)) * 8).astype(np.uint64)
     words = np.ndarray((buf.size - 7,), dtype="<u8", buffer=buf, strides=(1,))
-    at = anchors + base
+    at_i = anchors + (base - 8)
+    at_f = anchors + (base + 1)
     for s in range(0, n, CHUNK):
         part = slice(s, s + CHUNK)
-        a = at[part]
-        li, lf = int_len[part], frac_len[part]
-        keep_i = _FULL << ((_8 - np.minimum(li, _8)) << _3)  # the top li bytes: digits before the dot
-        keep_f = _FULL >> ((_8 - np.minimum(lf, _8)) << _3)  # the low lf bytes: digits after it
-        xi = words[a - 8]
-        xi &= keep_i
-        xi |= _ZEROS & ~keep_i
-        xf = words[a + 1]
-        xf &= keep_f
-        xf |= _ZEROS & ~keep_f
-        mantissa = (_swar8(xi) * _E8 + _swar8(xf)).astype(np.float64)
-        np.divide(mantissa, 1e8, out=values[part])
-        slow = needs_slow[part]
-        np.logical_not(_digits_only(xi) & _digits_only(xf), out=slow)
-        slow |= li > _7
-        slow |= lf > _8
-        slow |= (li + lf) == _0
-    needs_slow |= several_dots
-    np.negative(values, out=values, where=negative)
+        vi, bad = _digits(words[at_i[part]], _FULL << shift_i[part])
+        vf, bad_f = _digits(words[at_f[part]], _FULL >> shift_f[part])
+        bad |= bad_f
+        vi *= _E8
+        vi += vf
+        np.divide(vi, divisor[part], out=values[part])
+        needs_slow[part] |= bad != _0
     return values, needs_slow
