@@ -232,6 +232,7 @@ class ControlLoop:
         on_progress = self.on_progress
         stop = self._stop
         perf = time.perf_counter
+        minimum, maximum = np.minimum, np.maximum  # ufuncs: a third of np.clip's overhead on 6 values
 
         status0 = bus.status() if bus is not None else None
         retries_before = status0.retries if status0 is not None else 0
@@ -282,14 +283,14 @@ class ControlLoop:
                 elapsed = k - last_slot if last_slot >= 0 else 1
                 # seed: where the commanded pose is heading at half its current speed (a full-speed
                 # prediction saves a few more sweeps but overshoots into joint-limit traps now and then)
-                seed = np.clip(q_cmd + _LEAD * velocity * elapsed, lower, upper)
+                seed = minimum(maximum(q_cmd + (_LEAD * elapsed) * velocity, lower), upper)
                 result = solve(target, seed, rotation)
                 delta = result.q - q_cmd
                 limit = vstep * elapsed
-                vlimited = bool(np.any(np.abs(delta) > limit))
+                vlimited = bool((abs(delta) > limit).any())
                 if vlimited:
-                    delta = np.clip(delta, -limit, limit)
-                q_next = np.clip(q_cmd + delta, lower, upper)
+                    delta = minimum(maximum(delta, -limit), limit)
+                q_next = minimum(maximum(q_cmd + delta, lower), upper)
                 velocity = (q_next - q_cmd) / elapsed  # rad per slot
                 q_cmd = q_next
                 c1 = perf()
