@@ -148,6 +148,17 @@ def test_sigint_stops_cleanly_through_the_shutdown_sequence(arm, registered, cap
 SYNC_WRITE = 0x83
 
 
+def no_arms_bvh(tmp_path):
+    path = tmp_path / "armless.bvh"
+    path.write_text(
+        "HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0 0\n  CHANNELS 3 Xposition Yposition Zposition\n"
+        "  JOINT Head\n  {\n    OFFSET 0 50 0\n    CHANNELS 3 Zrotation Xrotation Yrotation\n"
+        "    End Site\n    {\n      OFFSET 0 10 0\n    }\n  }\n}\n"
+        "MOTION\nFrames: 2\nFrame Time: 0.1\n0 90 0 0 0 0\n0 90 0 0 0 0\n"
+    )
+    return str(path)
+
+
 def bad_bvh(tmp_path):
     path = tmp_path / "bad.bvh"
     path.write_text("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0\n")
@@ -159,6 +170,7 @@ def bad_bvh(tmp_path):
     [
         (["missing.bvh"], r"missing\.bvh"),
         ([bad_bvh], r"bad\.bvh:4: "),
+        ([no_arms_bvh], r"armless\.bvh: "),
         (["--arm", "nope"], r"nope"),
         (["--rate", "0"], r"--rate: Expected a tick rate > 0 Hz \(got 0\.0\)"),
         (["--rate", "fast"], r"--rate: Expected a number \(got 'fast'\)"),
@@ -222,3 +234,11 @@ def test_the_arm_files_mapping_table_is_used_and_checked(capsys, tmp_path):
         code, out, err = replay(capsys, "--arm", str(bad), "--dry-run", "--fast", "--end", "1", *extra)
         assert code == 2
         assert err.strip() == f"retarget: {bad}: mapping.side: Expected 'left' or 'right' (got 'up')"
+
+
+def test_a_sim_url_with_faults_runs_on_a_virtual_clock_with_fast(capsys):
+    code, out, err = replay(capsys, "--port", "sim://wx250s?drop=0.01&seed=2", "--fast", "--json", "--end", "1")
+    assert code == 0, err
+    summary = json.loads(out)
+    assert summary["bus_retries"] > 0 and summary["bus_errors"] == 0
+    assert summary["real_time_factor"] > 1  # dropped replies cost virtual time only
