@@ -76,6 +76,8 @@ def parse_bvh(text: str | bytes, *, path: str | PathLike[str] | None = None) -> 
 # --------------------------------------------------------------------------------------------- whole file
 
 _PAD = bvh_numbers.PAD
+_CONTROL_BYTES = bytes([*range(1, 9), *range(14, 32)])
+_MAX_DEPTH = 500  # nested joints; real skeletons stay under 100
 _HEAD = 1 << 16  # bytes tried first for the header
 
 
@@ -125,9 +127,10 @@ def _parse(buf: np.ndarray, size: int, *, path: Path | None) -> Motion:
 
 def _reject_binary(text: np.ndarray, head: bytes, path: Path | None) -> None:
     """A NUL byte anywhere, or many control characters at the start, mean this is not a text file."""
-    control = sum(head.count(bytes([c])) for c in (*range(1, 9), *range(14, 32)))
+    start = head[:4096]
+    control = len(start) - len(start.translate(None, _CONTROL_BYTES))
     has_nul = bool((text == 0).any())
-    if has_nul or control > len(head) // 20:
+    if has_nul or control > len(start) // 20:
         where = int(np.argmax(text == 0)) if has_nul else 0
         line = int(np.count_nonzero(text[:where] == 10)) + 1
         raise BvhError("Expected a text BVH file, got binary data", path=path, line=line)
@@ -214,8 +217,10 @@ class _Header:
             raise self._error(f"Expected MOTION alone on its line, got {_show(text)}")
         self._motion_header()
 
-    def _joint(self, text: str, *, parent: int, keyword: str) -> None:
+    def _joint(self, text: str, *, parent: int, keyword: str, depth: int = 0) -> None:
         opened_line = self.line
+        if depth >= _MAX_DEPTH:
+            raise self._error(f"Expected at most {_MAX_DEPTH} nested joints, got more")
         name, brace = _name_and_brace(text, keyword)
         if not name:
             raise self._error(f"Expected a joint name after {keyword}, got nothing")
@@ -239,7 +244,7 @@ class _Header:
                 self.n_channels += len(joint.channel_names)
             elif kw == "JOINT":
                 self._require_header(joint, keyword)
-                self._joint(text, parent=index, keyword="JOINT")
+                self._joint(text, parent=index, keyword="JOINT", depth=depth + 1)
             elif kw == "END":
                 self._require_header(joint, keyword)
                 self._end_site(text, parent=index)

@@ -7,6 +7,7 @@ import pytest
 
 from retarget import bvh_numbers
 from retarget.bvh import DEMO_CLIP, load_bvh, parse_bvh
+from retarget.errors import BvhError
 from tests.conftest import shared_clips
 from tests.retarget.bvh_text import POS_XYZ, ROT_ZXY, J, bvh_text, n_channels
 
@@ -86,6 +87,34 @@ def test_several_roots():
     m = parse_bvh("\n".join(lines))
     assert m.joint_names[-1] == "Prop" and m.parents[-1] == -1
     np.testing.assert_array_equal(m.positions()[0, -1], [7, 8, 9])
+
+
+@pytest.mark.parametrize("fmt", ["{:.6f}", "{:.4f}", "{:.9f}", "{:.3e}", "{!r}"], ids=["f6", "f4", "f9", "exp", "repr"])
+def test_many_frames_across_read_windows(fmt):
+    rng = np.random.default_rng(len(fmt))
+    frames = rng.uniform(-500, 500, size=(3000, 12)) * rng.choice([1e-3, 1, 10], size=(3000, 12))
+    text = bvh_text(small(), frames, fmt=fmt)
+    assert len(text) > 3 * 96 * 1024  # several windows of the windowed reader
+    m = parse_bvh(text)
+    want = np.array([float(fmt.format(float(v))) for v in frames.ravel()]).reshape(frames.shape)
+    np.testing.assert_array_equal(m.channels, want)
+
+
+def test_frame_line_longer_than_a_read_window():
+    root = J("Hips", (0, 0, 0), POS_XYZ, children=[J(f"j{k}", (0, 1, 0), ROT_ZXY) for k in range(4500)])
+    rng = np.random.default_rng(4)
+    frames = np.round(rng.uniform(-90, 90, size=(2, 3 + 3 * 4500)), 4)  # a frame line is > 100 KB
+    m = parse_bvh(bvh_text(root, frames, fmt="{:.4f}"))
+    np.testing.assert_array_equal(m.channels, frames)
+
+
+def test_absurdly_deep_hierarchy_is_an_error_not_a_crash():
+    text = "HIERARCHY\n" + "".join(
+        f"{'ROOT' if k == 0 else 'JOINT'} j{k}\n{{\nOFFSET 0 1 0\nCHANNELS 1 Xrotation\n" for k in range(3000)
+    )
+    with pytest.raises(BvhError, match="Expected at most 500 nested joints, got more") as info:
+        parse_bvh(text)
+    assert info.value.line == 2 + 4 * 500
 
 
 def test_load_bvh_reads_a_file(tmp_path):
@@ -217,3 +246,16 @@ def test_demo_clip_is_reproducible(tmp_path):
     finally:
         sys.argv = argv
     assert out.read_bytes() == DEMO_CLIP.read_bytes()
+
+
+def test_regular_files_take_the_windowed_path(monkeypatch):
+    import retarget.bvh as bvh_module
+
+    def fail(*args, **kwargs):
+        raise AssertionError("the one-piece checked path ran for a regular file")
+
+    monkeypatch.setattr(bvh_module, "_read_frames_checked", fail)
+    frames = np.random.default_rng(0).uniform(-100, 100, size=(2000, 12))
+    m = parse_bvh(bvh_text(small(), frames, fmt="{:.5f}").replace("\n", "  \n"))
+    assert m.n_frames == 2000
+    assert load_bvh(DEMO_CLIP).n_frames == 630
