@@ -341,3 +341,12 @@ def test_an_unplugged_servo_raises_and_the_bus_is_closed(arm, sim_bus):
     with pytest.raises(retarget.BusError, match=r"servo 4\b"):
         run_on_bus(loop, bus)
     assert not bus.connected
+
+
+def test_a_stop_before_the_first_tick_gives_an_empty_summary(arm):
+    loop = ControlLoop(arm, circle_targets(arm), clock=VirtualClock())
+    loop.stop()
+    summary = loop.run(None)
+    assert summary.interrupted and summary.ticks == 0
+    assert summary.ik_converged_pct == 0.0 and summary.tick_ms_max == 0.0 and summary.duration_s == 0.0
+    assert "0 ticks" in summary.format()
