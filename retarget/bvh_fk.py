@@ -21,9 +21,6 @@ import numpy as np
 
 from retarget.rotations import AXIS_INDEX, compose_entries
 
-#: Elements per vector step when building local rotations (keeps temporaries small and in cache).
-_STEP_ELEMENTS = 12_000
-
 
 @dataclass(frozen=True)
 class Pose:
@@ -55,55 +52,74 @@ def forward_kinematics(
     ``parents`` ``(J,)`` (parent before child, -1 for roots); ``offsets``
     ``(J, 3)``; per joint its canonical channel names and first column in
     ``channels`` ``(n_frames, n_channels)`` (degrees, file units).
+
+    Only one depth level of world rotations is kept at a time (as nine
+    ``(k, n_frames)`` rows), unless ``rotations`` asks for all of them.
     """
     parents = np.asarray(parents, dtype=np.intp)
     nj, n = len(parents), channels.shape[0]
     order, level_bounds = _breadth_first(parents)
-    rank = np.empty(nj, dtype=np.intp)
-    rank[order] = np.arange(nj)
-    columns = np.ascontiguousarray(channels.T)  # (C, n)
-
-    local = _local_rotations(order, channel_names, first_columns, columns)
-    world = np.empty((3, 3, nj, n))
-    pos = np.empty((3, nj, n))
-    tmp = np.empty((nj, n))
+    columns = channels.T  # (C, n) view
+    positions = np.empty((n, nj, 3))
+    all_rot = np.empty((n, nj, 3, 3)) if rotations else None
+    sites = np.empty((n, len(end_site_parents), 3))
+    site_offsets = np.asarray(end_site_offsets, dtype=np.float64).reshape(-1, 3)
+    site_parents = np.asarray(end_site_parents, dtype=np.intp)
+    slot = np.zeros(nj, dtype=np.intp)  # a joint's row within its level
+    prev_rot: list[list[np.ndarray]] = []
+    prev_pos: list[np.ndarray] = []
     for a, b in level_bounds:
         joints = order[a:b]
+        slot[joints] = np.arange(b - a)
+        local = _local_rotations(joints, channel_names, first_columns, columns)
         trans = _translations(joints, offsets, channel_names, first_columns, columns)  # (3, k, 1 or n)
-        if parents[joints[0]] < 0:  # roots come first, alone in their level
-            world[:, :, a:b] = local[:, :, a:b]
-            pos[:, a:b] = trans
-            continue
-        pr = rank[parents[joints]]
-        if np.all(pr == pr[0]):
-            parent_rot, parent_pos = world[:, :, pr[0] : pr[0] + 1], pos[:, pr[0] : pr[0] + 1]
+        if parents[joints[0]] < 0:  # the roots, alone in the first level
+            world = [[_rows(local[i][c], b - a, n) for c in range(3)] for i in range(3)]
+            pos = [np.broadcast_to(trans[i], (b - a, n)).copy() for i in range(3)]
         else:
-            parent_rot, parent_pos = world[:, :, pr], pos[:, pr]
-        t = tmp[: b - a]
+            ps = slot[parents[joints]]
+            pick = slice(int(ps[0]), int(ps[0]) + 1) if np.all(ps == ps[0]) else ps
+            prot = [[prev_rot[i][c][pick] for c in range(3)] for i in range(3)]  # (k or 1, n)
+            world = [
+                [_rows(_dot3(prot[i], [local[0][c], local[1][c], local[2][c]]), b - a, n) for c in range(3)]
+                for i in range(3)
+            ]
+            pos = [
+                _rows(_dot3(prot[i], [trans[0], trans[1], trans[2]]) + prev_pos[i][pick], b - a, n) for i in range(3)
+            ]
         for i in range(3):
-            for c in range(3):
-                dst = world[i, c, a:b]
-                np.multiply(parent_rot[i, 0], local[0, c, a:b], out=dst)
-                np.multiply(parent_rot[i, 1], local[1, c, a:b], out=t)
-                dst += t
-                np.multiply(parent_rot[i, 2], local[2, c, a:b], out=t)
-                dst += t
-            dst = pos[i, a:b]
-            np.multiply(parent_rot[i, 0], trans[0], out=dst)
-            np.multiply(parent_rot[i, 1], trans[1], out=t)
-            dst += t
-            np.multiply(parent_rot[i, 2], trans[2], out=t)
-            dst += t
-            dst += parent_pos[i]
+            positions[:, joints, i] = pos[i].T
+            if all_rot is not None:
+                for c in range(3):
+                    all_rot[:, joints, i, c] = world[i][c].T
+        for k in np.flatnonzero(np.isin(site_parents, joints)):
+            r, off = slot[site_parents[k]], site_offsets[k]
+            for i in range(3):
+                sites[:, k, i] = pos[i][r] + world[i][0][r] * off[0] + world[i][1][r] * off[1] + world[i][2][r] * off[2]
+        prev_rot, prev_pos = world, pos
+    return Pose(positions=positions, end_sites=sites, rotations=all_rot)
 
-    positions = np.ascontiguousarray(pos[:, rank].transpose(2, 1, 0))
-    sites = np.empty((n, len(end_site_parents), 3))
-    for k, (p, off) in enumerate(zip(end_site_parents, end_site_offsets, strict=True)):
-        r = rank[p]
-        for i in range(3):
-            sites[:, k, i] = pos[i, r] + world[i, 0, r] * off[0] + world[i, 1, r] * off[1] + world[i, 2, r] * off[2]
-    rot = world[:, :, rank].transpose(3, 2, 0, 1) if rotations else None
-    return Pose(positions=positions, end_sites=sites, rotations=rot)
+
+def _dot3(row: list, col: list) -> np.ndarray:
+    """``row[0]*col[0] + row[1]*col[1] + row[2]*col[2]`` with ``None`` as 0 and ``1.0`` as 1 folded away."""
+    total = None
+    for x, y in zip(row, col, strict=True):
+        if x is None or y is None:
+            continue
+        term = y if isinstance(x, float) and x == 1.0 else x if isinstance(y, float) and y == 1.0 else x * y
+        total = term if total is None else total + term
+    return total  # type: ignore[return-value]
+
+
+def _rows(entry, k: int, n: int) -> np.ndarray:
+    """An entry (None, 1.0, or an array broadcastable to ``(k, n)``) as a ``(k, n)`` array."""
+    if entry is None:
+        return np.zeros((k, n))
+    if isinstance(entry, float):
+        return np.full((k, n), entry)
+    if entry.shape != (k, n):
+        return np.broadcast_to(entry, (k, n)).copy()
+    return entry
 
 
 def _breadth_first(parents: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int]]]:
@@ -118,36 +134,36 @@ def _breadth_first(parents: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int
 
 
 def _local_rotations(
-    order: np.ndarray, channel_names: Sequence[Sequence[str]], first_columns: Sequence[int], columns: np.ndarray
-) -> np.ndarray:
-    """``(3, 3, J, n)`` local rotations, joints in ``order``."""
-    nj, n = len(order), columns.shape[1]
-    out = np.empty((3, 3, nj, n))
-    groups: dict[str, list[int]] = {}  # rotation order -> positions in `order`
-    rot_cols: list[list[int]] = []
-    for pos, j in enumerate(order):
+    joints: np.ndarray, channel_names: Sequence[Sequence[str]], first_columns: Sequence[int], columns: np.ndarray
+) -> list[list]:
+    """Local rotations of ``joints`` as a 3x3 nested list of ``(k, n)`` rows (or ``None``/``1.0`` when constant)."""
+    k, n = len(joints), columns.shape[1]
+    orders = []
+    cols = []
+    for j in joints:
         names = channel_names[j]
-        cols = [first_columns[j] + i for i, name in enumerate(names) if name.endswith("rotation")]
-        rot_cols.append(cols)
-        groups.setdefault("".join(names[i - first_columns[j]][0] for i in cols), []).append(pos)
-    step = max(1, _STEP_ELEMENTS // max(n, 1))
-    for axes_text, members in groups.items():
-        axes = [AXIS_INDEX[a] for a in axes_text]
-        for s in range(0, len(members), step):
-            part = members[s : s + step]
-            contiguous = part[-1] - part[0] == len(part) - 1
-            where = slice(part[0], part[-1] + 1) if contiguous else np.array(part)
-            if not axes:
-                out[:, :, where] = np.eye(3)[:, :, None, None]
-                continue
-            cols = np.array([rot_cols[p] for p in part])  # (k, m)
-            angles = np.radians(columns[cols.T])  # (m, k, n)
-            entries = compose_entries(axes, np.cos(angles), np.sin(angles))
-            for i in range(3):
-                for c in range(3):
-                    e = entries[i][c]
-                    out[i, c, where] = 0.0 if e is None else e
+        picked = [i for i, name in enumerate(names) if name.endswith("rotation")]
+        orders.append("".join(names[i][0] for i in picked))
+        cols.append([first_columns[j] + i for i in picked])
+    if len(set(orders)) == 1:
+        return _compose(orders[0], np.array(cols).reshape(k, -1), columns)
+    out = [[np.empty((k, n)) for _ in range(3)] for _ in range(3)]
+    for axes_text in set(orders):
+        rows = [r for r, o in enumerate(orders) if o == axes_text]
+        part = _compose(axes_text, np.array([cols[r] for r in rows]).reshape(len(rows), -1), columns)
+        for i in range(3):
+            for c in range(3):
+                e = part[i][c]
+                out[i][c][rows] = 0.0 if e is None else e
     return out
+
+
+def _compose(axes_text: str, cols: np.ndarray, columns: np.ndarray) -> list[list]:
+    """Entries of the rotations of channel columns ``cols`` ``(k, m)`` in order ``axes_text``."""
+    if not axes_text:
+        return [[1.0 if i == c else None for c in range(3)] for i in range(3)]
+    angles = np.radians(columns[cols.T])  # (m, k, n)
+    return compose_entries([AXIS_INDEX[a] for a in axes_text], np.cos(angles), np.sin(angles))
 
 
 def _translations(
