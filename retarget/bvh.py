@@ -98,9 +98,8 @@ def _parse(buf: np.ndarray, size: int, *, path: Path | None) -> Motion:
     if not head.strip() and not (text > 32).any():
         raise BvhError("Expected a BVH file starting with HIERARCHY, got an empty file", path=path, line=1)
     _reject_binary(text, head, path)
-    if (text == 13).any():
-        data = bytes(text).replace(b"\r\n", b"\n").replace(b"\r", b"\n")
-        return parse_bvh(data, path=path)
+    if b"\r" in head:  # CR or CRLF line ends (a CR first met later is caught by _read_frames)
+        return _parse_normalised(text, path)
     header = _Header(head, path)
     try:
         header.parse()
@@ -112,7 +111,10 @@ def _parse(buf: np.ndarray, size: int, *, path: Path | None) -> Motion:
     if not complete:  # a header longer than the first bytes tried
         header = _Header(bytes(text), path)
         header.parse()
-    channels = _read_frames(buf, _PAD + header.data_start, size - header.data_start, header, path)
+    try:
+        channels = _read_frames(buf, _PAD + header.data_start, size - header.data_start, header, path)
+    except _CarriageReturns:
+        return _parse_normalised(text, path)
     return Motion(
         joint_names=tuple(j.name for j in header.joints),
         parents=np.array([j.parent for j in header.joints], dtype=np.intp),
@@ -125,13 +127,22 @@ def _parse(buf: np.ndarray, size: int, *, path: Path | None) -> Motion:
     )
 
 
+class _CarriageReturns(Exception):
+    """The frames hold a CR the header did not: read the file again with its line ends normalised."""
+
+
+def _parse_normalised(text: np.ndarray, path: Path | None) -> Motion:
+    data = bytes(text).replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+    return parse_bvh(data, path=path)
+
+
 def _reject_binary(text: np.ndarray, head: bytes, path: Path | None) -> None:
     """A NUL byte anywhere, or many control characters at the start, mean this is not a text file."""
     start = head[:4096]
     control = len(start) - len(start.translate(None, _CONTROL_BYTES))
-    has_nul = bool((text == 0).any())
+    has_nul = text.size > 0 and int(text.min()) == 0  # a reduction: no 1-byte-per-byte temporary
     if has_nul or control > len(start) // 20:
-        where = int(np.argmax(text == 0)) if has_nul else 0
+        where = int(np.argmin(text)) if has_nul else 0
         line = int(np.count_nonzero(text[:where] == 10)) + 1
         raise BvhError("Expected a text BVH file, got binary data", path=path, line=line)
 
@@ -385,6 +396,8 @@ def _read_frames(buf: np.ndarray, base: int, length: int, header: _Header, path:
     channels = _read_frames_fast(buf, base, length, header.n_frames, header.n_channels)
     if channels is not None:
         return channels
+    if int(np.count_nonzero(buf[base : base + length] == 13)):
+        raise _CarriageReturns
     return _read_frames_checked(buf, base, length, header, path)
 
 

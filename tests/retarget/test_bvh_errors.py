@@ -152,8 +152,14 @@ def test_first_problem_in_file_order_wins():
 
 
 @pytest.mark.parametrize("newline", ["\r\n", "\r"], ids=["crlf", "cr"])
-def test_line_numbers_with_other_line_ends(newline):
-    text = sub("9 8 7 6 5", "9 8 x 6 5").replace("\n", newline)
+@pytest.mark.parametrize("where", ["everywhere", "frames-only"])
+def test_line_numbers_with_other_line_ends(newline, where):
+    text = sub("9 8 7 6 5", "9 8 x 6 5")
+    if where == "everywhere":
+        text = text.replace("\n", newline)
+    else:
+        head, frames = text.split("0.0333333\n")
+        text = head + "0.0333333\n" + frames.replace("\n", newline)
     with pytest.raises(BvhError, match="Expected a number, got 'x'") as info:
         parse_bvh(text)
     assert info.value.line == 20

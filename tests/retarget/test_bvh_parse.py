@@ -35,9 +35,17 @@ def test_reads_skeleton_and_frames():
     assert str(m.path) == "x.bvh"
 
 
+def _after_motion(text: str, change) -> str:
+    head, rest = text.split("Frame Time", 1)
+    line, rest = rest.split("\n", 1)
+    return head + "Frame Time" + line + "\n" + change(rest)
+
+
 VARIANTS = {
     "crlf": lambda t: t.replace("\n", "\r\n"),
     "cr-only": lambda t: t.replace("\n", "\r"),
+    "crlf-frames-only": lambda t: _after_motion(t, lambda rest: rest.replace("\n", "\r\n")),
+    "cr-frames-only": lambda t: _after_motion(t, lambda rest: rest.replace("\n", "\r")),
     "tabs": lambda t: t.replace("  ", "\t").replace(" ", "\t"),
     "trailing-space": lambda t: t.replace("\n", "  \t\n"),
     "no-final-newline": lambda t: t.rstrip("\n"),
