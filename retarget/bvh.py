@@ -403,6 +403,8 @@ def _read_frames(buf: np.ndarray, base: int, length: int, header: _Header, path:
 
 def _read_frames_fast(buf: np.ndarray, base: int, length: int, n_frames: int, n_channels: int) -> np.ndarray | None:
     """The frames if every line and number is regular, else None (nothing is reported from here)."""
+    if n_frames * n_channels > (length + 1) // 2:  # each value takes 2 bytes at least: the file ends early
+        return None
     values = np.empty(n_frames * n_channels)
     b = buf[base : base + length]
     filled = lines = 0
