@@ -296,7 +296,7 @@ def _by_structure(side, joint_names, parents, offsets, end_site_parents, end_sit
     depth = np.zeros(n, dtype=int)
     for j in range(n):
         depth[j] = depth[parents[j]] + 1 if parents[j] >= 0 else 0
-    branchy = [j for j in range(n) if len(children[j]) >= 3 and parents[j] >= 0]
+    branchy = [j for j in range(n) if len(children[j]) >= 3]  # the deepest is the chest (the root: upper body only)
     if not branchy:
         return None
     chest = max(branchy, key=lambda j: (depth[j], j))

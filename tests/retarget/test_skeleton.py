@@ -130,6 +130,16 @@ def test_structure_fallback_without_meaningful_names():
     np.testing.assert_allclose(right.points[0, :, 0], [-17, -45, -70])
 
 
+def test_structure_fallback_on_an_upper_body_rooted_at_the_chest():
+    full = arm_skeleton({"upper": "{side}a", "fore": "{side}b", "hand": "{side}c", "left": "x", "right": "y"})
+    chest = full.children[0]
+    chest.channels = ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")
+    motion = parse_bvh(bvh_text(chest))
+    assert motion.arm_points("left").method == "structure"
+    np.testing.assert_allclose(motion.arm_points("left").points[0, :, 0], [15, 43, 68])
+    np.testing.assert_allclose(motion.arm_points("right").points[0, :, 0], [-15, -43, -68])
+
+
 def test_structure_fallback_with_forearm_end_site():
     root = arm_skeleton({"upper": "{side}a", "fore": "{side}b", "hand": "{side}c", "left": "x", "right": "y"})
     for j in (root.children[0].children[1], root.children[0].children[2]):
