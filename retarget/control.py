@@ -1,11 +1,16 @@
-"""The fixed-rate control loop that plays retargeted motion on a bus.
+"""The fixed-rate control loop that plays retargeted motion, or live targets, on a bus.
 
-Each tick ``k`` has a slot on the loop's clock, ``t0 + k / rate``, and a clip
-time ``start + k * speed / rate`` (wrapped into ``[start, end)`` with
-``loop``).  In its slot a tick:
+One tick loop, :func:`run_ticks`, serves both uses: it asks a
+:class:`TargetSource` for each tick's target.  :class:`ControlLoop` plays a
+clip through a :class:`ClipSource`; ``retarget.teleop`` follows targets that
+arrive while the arm moves.  Each tick ``k`` has a slot on the loop's clock,
+``t0 + k / rate`` (for a clip, also a clip time ``start + k * speed / rate``,
+wrapped into ``[start, end)`` with ``loop``).  In its slot a tick:
 
-1. takes the target at its clip time (frames resampled to ticks by linear
-   interpolation, then pulled into the workspace; precomputed before the loop);
+1. takes the source's target (a clip's frames are resampled to ticks by linear
+   interpolation, then pulled into the workspace, a block of slots at a time).
+   A source with nothing to steer toward returns ``None``: the tick **holds**,
+   keeps the commanded pose and runs no IK (0 sweeps), then goes on to 4;
 2. solves IK with the arm's :class:`~retarget.ik.CCDSolver`, warm-started from
    the last commanded solution moved on by half its last step (a damped
    constant-velocity prediction: about 25 % fewer sweeps than the plain last
@@ -42,8 +47,8 @@ import math
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -57,7 +62,16 @@ if TYPE_CHECKING:
     from retarget.ik import CCDSolver
     from retarget.mapping import Targets
 
-__all__ = ["ControlLoop", "LoopConfig", "TickRecord", "run_on_bus"]
+__all__ = [
+    "ClipSource",
+    "ControlLoop",
+    "LoopConfig",
+    "TargetSource",
+    "TickRecord",
+    "TickStats",
+    "run_on_bus",
+    "run_ticks",
+]
 
 log = logging.getLogger(__name__)
 
@@ -215,72 +229,205 @@ class ControlLoop:
         The start pose is the bus's present positions, else ``q_start``, else the
         arm's rest pose.  ``BusError`` propagates (the caller closes the bus).
         """
-        cfg = self.config
-        arm = self.arm
-        clock = self.clock
-        dt = 1.0 / cfg.rate
-        lower, upper = arm.lower, arm.upper
-        vstep = arm.max_velocity * cfg.velocity_scale * dt  # rad per slot
-        n_slots = self.n_slots
-        max_ticks = cfg.max_ticks
-        looping = cfg.loop
-        block0 = block1 = 0  # the slots [block0, block1) of a pass whose targets are sampled
-        positions = clamped_mask = np.empty(0)
-        rotations: np.ndarray | None = None
-        solve = self.solver.solve
-        on_tick = self.on_tick
-        on_progress = self.on_progress
-        stop = self._stop
-        perf = time.perf_counter
-        minimum, maximum = np.minimum, np.maximum  # ufuncs: a third of np.clip's overhead on 6 values
+        source = ClipSource(self)
+        ticks = run_ticks(
+            self.arm,
+            source,
+            self.solver,
+            config=self.config,
+            clock=self.clock,
+            bus=bus,
+            q_start=q_start,
+            on_tick=self.on_tick,
+            on_progress=self.on_progress,
+            stop=self._stop,
+        )
+        played = (ticks.last_slot + 1) * self.config.speed / self.config.rate if ticks.last_slot >= 0 else 0.0
+        return ticks.summary(arm=self.arm.name, clip=self.clip_name, frames=self.frames, duration_s=played)
 
-        status0 = bus.status() if bus is not None else None
-        retries_before = status0.retries if status0 is not None else 0
-        if bus is not None:
-            q_cmd = np.asarray(bus.read_positions(), dtype=np.float64)
-        elif q_start is not None:
-            q_cmd = np.asarray(q_start, dtype=np.float64)
-        else:
-            q_cmd = arm.rest
-        if q_cmd.shape != (arm.n_joints,):
-            raise ValueError(f"Expected a start pose of shape ({arm.n_joints},), got {q_cmd.shape}")
-        q_cmd = np.clip(q_cmd, lower, upper)
-        velocity = np.zeros(arm.n_joints)  # of the commanded pose, rad per slot
 
-        err_l: list[float] = []
-        sweeps_l: list[int] = []
-        conv_l: list[bool] = []
-        clamp_l: list[bool] = []
-        vlim_l: list[bool] = []
-        comp_l: list[float] = []
-        bus_l: list[float] = []
-        overruns = skipped = 0
-        interrupted = False
-        last_slot = -1
-        next_progress = 0.0  # perf_counter time of the next progress report
-        retries_seen = retries_before
+class TargetSource(Protocol):
+    """Where each tick's target comes from: a clip (:class:`ClipSource`) or a live stream (``retarget.teleop``).
 
-        wall0 = perf()
-        t0 = clock.now()
-        k = 0
-        ticks = 0
-        try:
-            while (looping or k < n_slots) and (max_ticks is None or ticks < max_ticks) and not stop.is_set():
-                slot_time = k * dt
-                clock.sleep_until(t0 + slot_time)
-                c0 = perf()
-                i = k % n_slots if looping else k
-                if not block0 <= i < block1:  # sample the targets of the next slots, a block at a time
-                    if i == block1 or rotations is not None:
-                        block0, block1 = i, min(i + _BLOCK, n_slots)
-                        positions, rotations, clamped_mask = self.sample(block0, block1)
-                    else:  # after a skip only this slot (an overrunning loop skips every tick)
-                        one, moved = self.targets.at(cfg.start + i * self.step)
-                        block0, block1 = i, i + 1
-                        positions, clamped_mask = one[None], (moved,)
-                target = positions[i - block0]
-                rotation = None if rotations is None else rotations[i - block0]
-                elapsed = k - last_slot if last_slot >= 0 else 1
+    ``target_at(tick, t)`` gets the slot index and its time since the run's start (loop clock) and returns
+    ``(position (3,) metres, rotation (3, 3) | None, clamped)``, or ``None`` to **hold**: the tick then
+    keeps the commanded pose and runs no IK (0 sweeps).  ``finished(tick)`` ends the run before slot
+    ``tick``.  Optional: ``start(q_start)`` is called once with the start pose before the first tick,
+    ``observe(tick, q_cmd, q_present)`` after each tick (the goals sent and the positions read back, ``None``
+    in a dry run), and ``clip_time(tick)`` names the tick's clip seconds (default: the slot's time).
+    """
+
+    def target_at(self, tick: int, t: float) -> tuple[np.ndarray, np.ndarray | None, bool] | None: ...
+
+    def finished(self, tick: int) -> bool: ...
+
+
+class ClipSource:
+    """The :class:`TargetSource` of a :class:`ControlLoop`: its clip window, sampled a block of slots at a time."""
+
+    def __init__(self, loop: ControlLoop):
+        self.loop = loop
+        self.n_slots = loop.n_slots
+        self.looping = loop.config.loop
+        self._block0 = self._block1 = 0  # the slots [block0, block1) of a pass whose targets are sampled
+        self._positions = self._clamped = np.empty(0)
+        self._rotations: np.ndarray | None = None
+
+    def finished(self, tick: int) -> bool:
+        return not self.looping and tick >= self.n_slots
+
+    def clip_time(self, tick: int) -> float:
+        return self.loop.clip_time(tick % self.n_slots if self.looping else tick)
+
+    def target_at(self, tick: int, t: float) -> tuple[np.ndarray, np.ndarray | None, bool]:
+        i = tick % self.n_slots if self.looping else tick
+        if not self._block0 <= i < self._block1:  # sample the targets of the next slots, a block at a time
+            if i == self._block1 or self._rotations is not None:
+                self._block0, self._block1 = i, min(i + _BLOCK, self.n_slots)
+                self._positions, self._rotations, self._clamped = self.loop.sample(self._block0, self._block1)
+            else:  # after a skip only this slot (an overrunning loop skips every tick)
+                one, moved = self.loop.targets.at(self.loop.clip_time(i))
+                self._block0, self._block1 = i, i + 1
+                self._positions, self._clamped = one[None], (moved,)
+        j = i - self._block0
+        rotations = self._rotations
+        return self._positions[j], None if rotations is None else rotations[j], bool(self._clamped[j])
+
+
+@dataclass
+class TickStats:
+    """Per-tick series and counters of one :func:`run_ticks` run (times seconds, errors metres)."""
+
+    rate: float
+    dry_run: bool
+    errors: list[float] = field(default_factory=list)
+    sweeps: list[int] = field(default_factory=list)
+    converged: list[bool] = field(default_factory=list)
+    clamped: list[bool] = field(default_factory=list)
+    velocity_limited: list[bool] = field(default_factory=list)
+    compute: list[float] = field(default_factory=list)
+    bus: list[float] = field(default_factory=list)
+    holds: int = 0  #: ticks that held the pose (the source had no target; no IK ran)
+    overruns: int = 0
+    skipped: int = 0
+    interrupted: bool = False
+    last_slot: int = -1
+    wall_time: float = 0.0
+    bus_errors: int = 0
+    bus_retries: int = 0
+    q_cmd: np.ndarray | None = None  #: the last goals sent ``(n_joints,)`` rad
+    q_present: np.ndarray | None = None  #: the last positions read ``(n_joints,)`` rad
+
+    @property
+    def ticks(self) -> int:
+        return len(self.errors)
+
+    @property
+    def run_time(self) -> float:
+        """Loop-clock seconds from the first slot to the end of the last one."""
+        return (self.last_slot + 1) / self.rate if self.last_slot >= 0 else 0.0
+
+    def summary(self, *, arm: str, clip: str, frames: int, duration_s: float) -> RunSummary:
+        return summarize(
+            arm=arm,
+            clip=clip,
+            dry_run=self.dry_run,
+            interrupted=self.interrupted,
+            frames=frames,
+            rate=self.rate,
+            duration_s=duration_s,
+            run_time_s=self.run_time,
+            wall_time_s=self.wall_time,
+            ik_error_m=np.asarray(self.errors),
+            ik_sweeps=np.asarray(self.sweeps),
+            ik_converged=np.asarray(self.converged, dtype=bool),
+            clamped=np.asarray(self.clamped, dtype=bool),
+            velocity_limited=np.asarray(self.velocity_limited, dtype=bool),
+            compute_s=np.asarray(self.compute),
+            bus_s=np.asarray(self.bus),
+            overruns=self.overruns,
+            skipped_ticks=self.skipped,
+            bus_errors=self.bus_errors,
+            bus_retries=self.bus_retries,
+        )
+
+
+def run_ticks(
+    arm: Arm,
+    source: TargetSource,
+    solver: CCDSolver,
+    *,
+    config: LoopConfig,
+    clock: Clock,
+    bus: Bus | None = None,
+    q_start: np.ndarray | None = None,
+    on_tick: Callable[[TickRecord], None] | None = None,
+    on_progress: Callable[[TickRecord], None] | None = None,
+    stop: threading.Event | None = None,
+) -> TickStats:
+    """The fixed-rate tick loop shared by replay and teleop; see the module docstring for one tick.
+
+    Runs slots ``0, 1, ...`` until ``source.finished(k)``, ``config.max_ticks`` ticks, ``stop`` or
+    Ctrl-C.  The start pose is the bus's present positions, else ``q_start``, else the arm's rest pose.
+    ``BusError`` propagates (the caller closes the bus).
+    """
+    cfg = config
+    dt = 1.0 / cfg.rate
+    lower, upper = arm.lower, arm.upper
+    vstep = arm.max_velocity * cfg.velocity_scale * dt  # rad per slot
+    max_ticks = cfg.max_ticks
+    solve = solver.solve
+    target_at = source.target_at
+    finished = source.finished
+    observe = getattr(source, "observe", None)
+    clip_time = getattr(source, "clip_time", None)
+    stop = stop if stop is not None else threading.Event()
+    perf = time.perf_counter
+    minimum, maximum = np.minimum, np.maximum  # ufuncs: a third of np.clip's overhead on 6 values
+    st = TickStats(rate=cfg.rate, dry_run=bus is None)
+
+    status0 = bus.status() if bus is not None else None
+    retries_before = status0.retries if status0 is not None else 0
+    if bus is not None:
+        q_cmd = np.asarray(bus.read_positions(), dtype=np.float64)
+    elif q_start is not None:
+        q_cmd = np.asarray(q_start, dtype=np.float64)
+    else:
+        q_cmd = arm.rest
+    if q_cmd.shape != (arm.n_joints,):
+        raise ValueError(f"Expected a start pose of shape ({arm.n_joints},), got {q_cmd.shape}")
+    q_cmd = np.clip(q_cmd, lower, upper)
+    velocity = np.zeros(arm.n_joints)  # of the commanded pose, rad per slot
+    zero = velocity.copy()
+    if hasattr(source, "start"):
+        source.start(q_cmd)
+
+    err_l, sweeps_l, conv_l, clamp_l = st.errors, st.sweeps, st.converged, st.clamped
+    vlim_l, comp_l, bus_l = st.velocity_limited, st.compute, st.bus
+    overruns = skipped = holds = 0
+    last_slot = -1
+    next_progress = 0.0  # perf_counter time of the next progress report
+    retries_seen = retries_before
+    target = np.full(3, np.nan)  # held ticks report the last target
+    present = None
+
+    wall0 = perf()
+    t0 = clock.now()
+    k = 0
+    ticks = 0
+    try:
+        while (max_ticks is None or ticks < max_ticks) and not stop.is_set() and not finished(k):
+            slot_time = k * dt
+            clock.sleep_until(t0 + slot_time)
+            c0 = perf()
+            sample = target_at(k, slot_time)
+            elapsed = k - last_slot if last_slot >= 0 else 1
+            if sample is None:  # hold: no IK, the goals stay
+                holds += 1
+                velocity = zero
+                error, sweeps, converged, vlimited, clamped = 0.0, 0, True, False, False
+            else:
+                target, rotation, clamped = sample
                 # seed: where the commanded pose is heading at half its current speed (a full-speed
                 # prediction saves a few more sweeps but overshoots into joint-limit traps now and then)
                 seed = minimum(maximum(q_cmd + (_LEAD * elapsed) * velocity, lower), upper)
@@ -293,90 +440,74 @@ class ControlLoop:
                 q_next = minimum(maximum(q_cmd + delta, lower), upper)
                 velocity = (q_next - q_cmd) / elapsed  # rad per slot
                 q_cmd = q_next
-                c1 = perf()
-                present = None
-                retries = 0
-                c2 = c1
-                if bus is not None:
-                    bus.write_goals(q_cmd)
-                    present = bus.read_positions()
-                    c2 = perf()
-                    retries_now = bus.status().retries
-                    retries = retries_now - retries_seen
-                    retries_seen = retries_now
-                last_slot = k
-                # deadline: did this tick end after the next slot began?
-                now = clock.now() - t0
-                overrun = now > slot_time + dt
-                next_k = k + 1
-                if overrun:
-                    overruns += 1
-                    next_k = max(k + 1, int(now / dt))
-                    skipped += next_k - k - 1
-                err_l.append(result.error)
-                sweeps_l.append(result.iterations)
-                conv_l.append(result.converged)
-                clamped = bool(clamped_mask[i - block0])
-                clamp_l.append(clamped)
-                vlim_l.append(vlimited)
-                comp_l.append(c1 - c0)
-                bus_l.append(c2 - c1)
-                report = on_progress is not None and c2 >= next_progress
-                if on_tick is not None or report:
-                    record = TickRecord(
-                        tick=k,
-                        time=slot_time,
-                        clip_time=cfg.start + i * self.step,
-                        target=target,
-                        q_cmd=q_cmd,
-                        q_present=present,
-                        ik_error=float(result.error),
-                        ik_sweeps=int(result.iterations),
-                        ik_converged=bool(result.converged),
-                        compute_time=c1 - c0,
-                        bus_time=c2 - c1,
-                        clamped=clamped,
-                        velocity_limited=vlimited,
-                        overrun=overrun,
-                        bus_retries=retries,
-                    )
-                    if on_tick is not None:
-                        on_tick(record)
-                    if report:
-                        next_progress = c2 + cfg.progress_every
-                        on_progress(record)  # type: ignore[misc]
-                k = next_k
-                ticks += 1
-            interrupted = stop.is_set()
-        except KeyboardInterrupt:
-            interrupted = True
-            log.info("interrupted at tick %d", k)
-        wall = perf() - wall0
-        run_time = (last_slot + 1) * dt if last_slot >= 0 else 0.0
-        status1 = bus.status() if bus is not None else None
-        played = (last_slot + 1) * cfg.speed * dt if last_slot >= 0 else 0.0
-        return summarize(
-            arm=arm.name,
-            clip=self.clip_name,
-            dry_run=bus is None,
-            interrupted=interrupted,
-            frames=self.frames,
-            rate=cfg.rate,
-            duration_s=played,
-            run_time_s=run_time,
-            wall_time_s=wall,
-            ik_error_m=np.asarray(err_l),
-            ik_sweeps=np.asarray(sweeps_l),
-            ik_converged=np.asarray(conv_l, dtype=bool),
-            clamped=np.asarray(clamp_l, dtype=bool),
-            velocity_limited=np.asarray(vlim_l, dtype=bool),
-            compute_s=np.asarray(comp_l),
-            bus_s=np.asarray(bus_l),
-            overruns=overruns,
-            skipped_ticks=skipped,
-            bus_errors=(status1.errors - status0.errors) if status1 is not None and status0 is not None else 0,
-            bus_retries=(status1.retries - retries_before) if status1 is not None else 0,
-        )
+                error, sweeps, converged = result.error, result.iterations, result.converged
+            c1 = perf()
+            retries = 0
+            c2 = c1
+            if bus is not None:
+                bus.write_goals(q_cmd)
+                present = bus.read_positions()
+                c2 = perf()
+                retries_now = bus.status().retries
+                retries = retries_now - retries_seen
+                retries_seen = retries_now
+            last_slot = k
+            # deadline: did this tick end after the next slot began?
+            now = clock.now() - t0
+            overrun = now > slot_time + dt
+            next_k = k + 1
+            if overrun:
+                overruns += 1
+                next_k = max(k + 1, int(now / dt))
+                skipped += next_k - k - 1
+            err_l.append(error)
+            sweeps_l.append(sweeps)
+            conv_l.append(converged)
+            clamp_l.append(clamped)
+            vlim_l.append(vlimited)
+            comp_l.append(c1 - c0)
+            bus_l.append(c2 - c1)
+            if observe is not None:
+                observe(k, q_cmd, present)
+            report = on_progress is not None and c2 >= next_progress
+            if on_tick is not None or report:
+                record = TickRecord(
+                    tick=k,
+                    time=slot_time,
+                    clip_time=clip_time(k) if clip_time is not None else slot_time,
+                    target=target,
+                    q_cmd=q_cmd,
+                    q_present=present,
+                    ik_error=float(error),
+                    ik_sweeps=int(sweeps),
+                    ik_converged=bool(converged),
+                    compute_time=c1 - c0,
+                    bus_time=c2 - c1,
+                    clamped=clamped,
+                    velocity_limited=vlimited,
+                    overrun=overrun,
+                    bus_retries=retries,
+                )
+                if on_tick is not None:
+                    on_tick(record)
+                if report:
+                    next_progress = c2 + cfg.progress_every
+                    on_progress(record)  # type: ignore[misc]
+            k = next_k
+            ticks += 1
+        st.interrupted = stop.is_set()
+    except KeyboardInterrupt:
+        st.interrupted = True
+        log.info("interrupted at tick %d", k)
+    st.wall_time = perf() - wall0
+    st.last_slot = last_slot
+    st.overruns, st.skipped, st.holds = overruns, skipped, holds
+    st.q_cmd, st.q_present = q_cmd, present
+    if bus is not None:
+        status1 = bus.status()
+        st.bus_errors = status1.errors - status0.errors
+        st.bus_retries = status1.retries - retries_before
+    return st
 
 
 def run_on_bus(loop: ControlLoop, bus: Bus) -> RunSummary:
