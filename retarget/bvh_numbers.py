@@ -37,6 +37,17 @@ _M2, _M3 = _U(0x00FF00FF00FF00FF), _U(0x0000FFFF0000FFFF)
 _E8 = _U(100_000_000)
 _0, _8, _16, _32 = (_U(v) for v in (0, 8, 16, 32))
 
+# Per-token lookup tables.  ``_SIGNED``/``_DIVISOR`` by first byte; ``_KEEP_HIGH[k]`` keeps the top k bytes of a
+# word (the k digits before a dot), ``_KEEP_LOW[k]`` the low k bytes (the k digits after it); ``_SLOW_CASE`` by
+# ``int_len * 11 + frac_len + 1`` (int_len 0..8, frac_len -1..9): more than 7 + 8 digits, or none at all.
+_SIGNED = np.zeros(256, dtype=np.intp)
+_SIGNED[[43, 45]] = 1
+_DIVISOR = np.full(256, 1e8)
+_DIVISOR[45] = -1e8
+_KEEP_HIGH = np.array([0] + [((1 << (8 * k)) - 1) << (8 * (8 - k)) for k in range(1, 9)], dtype=np.uint64)
+_KEEP_LOW = np.array([(1 << (8 * k)) - 1 for k in range(10)], dtype=object).clip(max=(1 << 64) - 1).astype(np.uint64)
+_SLOW_CASE = np.array([i == 8 or f == 9 or (i == 0 and f <= 0) for i in range(9) for f in range(-1, 10)])
+
 CHUNK = 8192  #: tokens per vector step
 PAD = 16  #: bytes of padding before the block (and after it) that :func:`parse_tokens` reads
 
@@ -84,11 +95,12 @@ def _digits(words: np.ndarray, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return v, bad
 
 
-def _anchors(b: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per token, the offset of its dot (its end when it has none), and whether it has several dots."""
+def _anchors(b: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """Per token, the offset of its dot (its end when it has none), and whether it has several dots (None: none
+    has)."""
     dots = np.flatnonzero(b == 46)
     if dots.size == starts.size and bool(((dots >= starts) & (dots < ends)).all()):
-        return dots, np.zeros(starts.size, dtype=bool)
+        return dots, None
     owner = np.searchsorted(starts, dots, side="right") - 1  # a '.' is never whitespace: always inside a token
     anchors = ends.copy()
     anchors[owner] = dots
@@ -113,25 +125,22 @@ def parse_tokens(buf: np.ndarray, base: int, starts: np.ndarray, ends: np.ndarra
     b = buf[base : base + int(ends[-1])]
     anchors, several_dots = _anchors(b, starts, ends)
     first = b[starts]
-    negative = first == 45
-    divisor = 1e8 - 2e8 * negative  # -1e8 for a minus sign: an exact sign flip of the rounded quotient
-    int_len = anchors - starts - (negative | (first == 43))
-    frac_len = np.maximum(ends - anchors - 1, 0)
-    # tokens the 7 + 8 digit fast path cannot take, decided for all at once
-    np.greater(int_len, 7, out=needs_slow)
-    needs_slow |= frac_len > 8
-    needs_slow |= (int_len + frac_len) == 0
-    needs_slow |= several_dots
-    # shifts that keep the int_len bytes before the dot and the frac_len bytes after it
-    shift_i = ((8 - np.minimum(int_len, 8)) * 8).astype(np.uint64)
-    shift_f = ((8 - np.minimum(frac_len, 8)) * 8).astype(np.uint64)
+    int_len = np.minimum(anchors - starts - _SIGNED.take(first), 8)  # digits before the dot (8: too many)
+    frac_len = np.minimum(ends - anchors - 1, 9)  # digits after it (-1: no dot; 9: too many)
+    case = int_len * 11 + frac_len + 1
+    _SLOW_CASE.take(case, out=needs_slow)
+    if several_dots is not None:
+        needs_slow |= several_dots
+    divisor = _DIVISOR.take(first)  # -1e8 after a minus sign: an exact sign flip of the rounded quotient
+    keep_i = _KEEP_HIGH.take(int_len)
+    keep_f = _KEEP_LOW.take(np.maximum(frac_len, 0))
     words = np.ndarray((buf.size - 7,), dtype="<u8", buffer=buf, strides=(1,))
     at_i = anchors + (base - 8)
     at_f = anchors + (base + 1)
     for s in range(0, n, CHUNK):
         part = slice(s, s + CHUNK)
-        vi, bad = _digits(words[at_i[part]], _FULL << shift_i[part])
-        vf, bad_f = _digits(words[at_f[part]], _FULL >> shift_f[part])
+        vi, bad = _digits(words[at_i[part]], keep_i[part])
+        vf, bad_f = _digits(words[at_f[part]], keep_f[part])
         bad |= bad_f
         vi *= _E8
         vi += vf
