@@ -4,7 +4,7 @@ With no arguments it replays the bundled demo clip on the default arm (wx250s)
 over an in-process simulated bus in real time.  ``--fast`` runs as fast as
 possible on a virtual clock shared with the simulator; ``--dry-run`` solves
 every tick without any bus.  Also home of the options ``retarget export``
-shares (clip window, mapping flags).
+shares (clip window, mapping flags); the bus options live in ``retarget.cli._bus``.
 """
 
 from __future__ import annotations
@@ -12,19 +12,17 @@ from __future__ import annotations
 import argparse
 import json
 import re
-import signal
 import sys
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from retarget.cli._bus import add_bus_arguments, build_bus, check_bus_options, sigint_stops
 from retarget.errors import ConfigError
 
 if TYPE_CHECKING:
     from retarget.arm import Arm
-    from retarget.bus import Bus
     from retarget.clock import Clock
     from retarget.control import ControlLoop, LoopConfig, TickRecord
     from retarget.mapping import Targets
@@ -185,56 +183,12 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     add_clip_arguments(parser)
-    parser.add_argument(
-        "--port",
-        default=None,
-        help="serial port or pyserial URL: /dev/ttyUSB0, COM3, socket://h:p, sim://ARM?... "
-        "(default: an in-process simulated bus)",
-    )
     parser.add_argument("--loop", action="store_true", help="wrap to --start after --end until Ctrl-C")
     parser.add_argument("--max-ticks", default=None, metavar="N", help="stop after N ticks")
-    parser.add_argument("--fast", action="store_true", help="as fast as possible on a virtual clock (simulator only)")
     parser.add_argument("--dry-run", action="store_true", help="solve every tick without any bus")
-    parser.add_argument(
-        "--shutdown",
-        default="rest",
-        metavar="hold|rest|off",
-        help="on exit/Ctrl-C: hold the last goal, move to rest then torque off (default), or torque off",
-    )
-    parser.add_argument("--telemetry", default=None, metavar="CSV", help="write one CSV row per tick ('-' = stdout)")
-    parser.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
-    parser.add_argument("--progress", action="store_true", help="progress lines on stderr even when not a TTY")
+    add_bus_arguments(parser, shutdown="rest")
     add_mapping_arguments(parser)
     return parser
-
-
-def is_sim_port(port: str | None) -> bool:
-    return port is None or port.startswith("sim://")
-
-
-@contextmanager
-def _sigint_stops(loop: ControlLoop) -> Iterator[None]:
-    """First Ctrl-C: stop at the next tick boundary; a second one interrupts at once."""
-    try:
-        previous = signal.getsignal(signal.SIGINT)
-    except ValueError:  # not the main thread
-        yield
-        return
-
-    def handler(signum: int, frame: Any) -> None:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-        print("retarget: stopping (Ctrl-C again to interrupt)", file=sys.stderr)
-        loop.stop()
-
-    try:
-        signal.signal(signal.SIGINT, handler)
-    except ValueError:
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
 
 
 def _progress_printer(loop: ControlLoop) -> Callable[[TickRecord], None]:
@@ -252,73 +206,15 @@ def _progress_printer(loop: ControlLoop) -> Callable[[TickRecord], None]:
     return show
 
 
-@dataclass
-class BusSetup:
-    """The bus of a replay, the clock the loop must run on, and what to undo afterwards."""
-
-    bus: Bus
-    clock: Clock
-    registered: str | None = None  #: name of an in-process simulated bus this run registered
-
-    def release(self) -> None:
-        if self.registered is not None:
-            import sim
-
-            sim.unregister(self.registered)
-
-
-def build_bus(args: argparse.Namespace, arm: Arm) -> BusSetup:
-    """The driver on ``--port``; for a simulated port, the in-process SimBus and the clock shared with it.
-
-    No ``--port``: every servo of the arm simulated in process, wire-time model on.  ``sim://…``: the
-    simulator the URL describes, built here so the loop can share its clock (``--fast`` adds
-    ``clock=virtual``).  A real port runs on the monotonic clock.
-    """
-    from drivers import DynamixelBus
-    from retarget.clock import MonotonicClock, VirtualClock
-
-    port: str | None = args.port
-    if not is_sim_port(port):
-        clock: Clock = MonotonicClock()
-        return BusSetup(DynamixelBus(arm, port, shutdown=args.shutdown, clock=clock), clock)
-
-    import sim
-    from sim.transport import bus_from_url
-
-    name = None
-    if port is None:
-        simbus = sim.SimBus.from_arm(
-            arm, clock=VirtualClock() if args.fast else MonotonicClock(), faults=sim.Faults(wire=True)
-        )
-    elif port.startswith("sim://@"):
-        simbus = bus_from_url(port)
-    else:
-        url = port + (("&" if "?" in port else "?") + "clock=virtual" if args.fast else "")
-        simbus = bus_from_url(url)
-    if args.fast and not isinstance(simbus.clock, VirtualClock):
-        raise ConfigError("--fast needs a simulated bus on a virtual clock", key="--port", value=port)
-    if port is None or not port.startswith("sim://@"):
-        port = sim.attach(simbus)
-        name = port.removeprefix("sim://@")
-    return BusSetup(DynamixelBus(arm, port, shutdown=args.shutdown, clock=simbus.clock), simbus.clock, name)
-
-
 def run(args: argparse.Namespace) -> int:
     from retarget.cli import EXIT_INTERRUPTED
     from retarget.clock import MonotonicClock, VirtualClock
     from retarget.control import ControlLoop
     from retarget.telemetry import TelemetryWriter
 
-    if args.shutdown not in ("hold", "rest", "off"):
-        raise ConfigError("Expected hold, rest or off", key="--shutdown", value=args.shutdown)
-    if args.fast and not is_sim_port(args.port):
-        raise ConfigError("--fast needs the simulated bus (a sim:// port or none), not a real port", key="--port",
-                          value=args.port)  # fmt: skip
+    check_bus_options(args)
     if args.dry_run and args.port is not None:
         raise ConfigError("--dry-run uses no bus; drop --port", key="--port", value=args.port)
-    if args.telemetry == "-" and args.json:
-        raise ConfigError("--telemetry - and --json both write to stdout; give the telemetry a file", key="--telemetry",
-                          value=args.telemetry)  # fmt: skip
     inputs = load_inputs(args)
     config = loop_config(
         args,
@@ -337,7 +233,7 @@ def run(args: argparse.Namespace) -> int:
             out = sys.stdout if args.telemetry == "-" else args.telemetry
             telemetry = TelemetryWriter(out, inputs.arm.joint_names).open()
             loop.on_tick = telemetry
-        with _sigint_stops(loop):
+        with sigint_stops(loop.stop):
             if setup is None:
                 summary = loop.run(None)
             else:

@@ -1,0 +1,140 @@
+"""The bus options and their plumbing shared by the commands that drive an arm (``replay``, ``teleop``).
+
+``--port`` (a serial port, a pyserial URL, ``sim://…``; none = an in-process simulated bus), ``--fast``
+(a virtual clock shared by the loop and the simulator), ``--shutdown``, ``--telemetry``, ``--json`` and
+``--progress``; :func:`build_bus` turns them into a driver and the clock the loop must run on, and
+:func:`sigint_stops` makes the first Ctrl-C stop the loop at a tick boundary so the bus's shutdown runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from retarget.errors import ConfigError
+
+if TYPE_CHECKING:
+    from retarget.arm import Arm
+    from retarget.bus import Bus
+    from retarget.clock import Clock
+
+SHUTDOWN_MODES = ("hold", "rest", "off")
+
+
+def add_bus_arguments(parser: argparse.ArgumentParser | Any, *, shutdown: str = "rest") -> None:
+    """--port, --fast, --shutdown (default ``shutdown``), --telemetry, --json, --progress."""
+    helps = {
+        "hold": "hold the last goal (default), move to rest then torque off, or torque off",
+        "rest": "hold the last goal, move to rest then torque off (default), or torque off",
+        "off": "hold the last goal, move to rest then torque off, or torque off (default)",
+    }
+    parser.add_argument(
+        "--port",
+        default=None,
+        help="serial port or pyserial URL: /dev/ttyUSB0, COM3, socket://h:p, sim://ARM?... "
+        "(default: an in-process simulated bus)",
+    )
+    parser.add_argument("--fast", action="store_true", help="as fast as possible on a virtual clock (simulator only)")
+    parser.add_argument(
+        "--shutdown", default=shutdown, metavar="hold|rest|off", help=f"on exit/Ctrl-C: {helps[shutdown]}"
+    )
+    parser.add_argument("--telemetry", default=None, metavar="CSV", help="write one CSV row per tick ('-' = stdout)")
+    parser.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+    parser.add_argument("--progress", action="store_true", help="progress lines on stderr even when not a TTY")
+
+
+def check_bus_options(args: argparse.Namespace) -> None:
+    """ConfigError naming the option for a bad --shutdown, --fast with a real port, or two writers of stdout."""
+    if args.shutdown not in SHUTDOWN_MODES:
+        raise ConfigError("Expected hold, rest or off", key="--shutdown", value=args.shutdown)
+    if args.fast and not is_sim_port(args.port):
+        raise ConfigError("--fast needs the simulated bus (a sim:// port or none), not a real port", key="--port",
+                          value=args.port)  # fmt: skip
+    if args.telemetry == "-" and args.json:
+        raise ConfigError("--telemetry - and --json both write to stdout; give the telemetry a file", key="--telemetry",
+                          value=args.telemetry)  # fmt: skip
+
+
+def is_sim_port(port: str | None) -> bool:
+    return port is None or port.startswith("sim://")
+
+
+@contextmanager
+def sigint_stops(stop: Callable[[], None]) -> Iterator[None]:
+    """First Ctrl-C: call ``stop`` (the loop ends at the next tick boundary); a second one interrupts at once."""
+    try:
+        previous = signal.getsignal(signal.SIGINT)
+    except ValueError:  # not the main thread
+        yield
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        print("retarget: stopping (Ctrl-C again to interrupt)", file=sys.stderr)
+        stop()
+
+    try:
+        signal.signal(signal.SIGINT, handler)
+    except ValueError:
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+@dataclass
+class BusSetup:
+    """The bus of a run, the clock the loop must run on, and what to undo afterwards."""
+
+    bus: Bus
+    clock: Clock
+    registered: str | None = None  #: name of an in-process simulated bus this run registered
+
+    def release(self) -> None:
+        if self.registered is not None:
+            import sim
+
+            sim.unregister(self.registered)
+
+
+def build_bus(args: argparse.Namespace, arm: Arm) -> BusSetup:
+    """The driver on ``--port``; for a simulated port, the in-process SimBus and the clock shared with it.
+
+    No ``--port``: every servo of the arm simulated in process, wire-time model on.  ``sim://…``: the
+    simulator the URL describes, built here so the loop can share its clock (``--fast`` adds
+    ``clock=virtual``).  A real port runs on the monotonic clock.
+    """
+    from drivers import DynamixelBus
+    from retarget.clock import MonotonicClock, VirtualClock
+
+    port: str | None = args.port
+    if not is_sim_port(port):
+        clock: Clock = MonotonicClock()
+        return BusSetup(DynamixelBus(arm, port, shutdown=args.shutdown, clock=clock), clock)
+
+    import sim
+    from sim.transport import bus_from_url
+
+    name = None
+    if port is None:
+        simbus = sim.SimBus.from_arm(
+            arm, clock=VirtualClock() if args.fast else MonotonicClock(), faults=sim.Faults(wire=True)
+        )
+    elif port.startswith("sim://@"):
+        simbus = bus_from_url(port)
+    else:
+        url = port + (("&" if "?" in port else "?") + "clock=virtual" if args.fast else "")
+        simbus = bus_from_url(url)
+    if args.fast and not isinstance(simbus.clock, VirtualClock):
+        raise ConfigError("--fast needs a simulated bus on a virtual clock", key="--port", value=port)
+    if port is None or not port.startswith("sim://@"):
+        port = sim.attach(simbus)
+        name = port.removeprefix("sim://@")
+    return BusSetup(DynamixelBus(arm, port, shutdown=args.shutdown, clock=simbus.clock), simbus.clock, name)
