@@ -236,7 +236,10 @@ class Follower:
 
 # ------------------------------------------------------------------------------------------------ the session
 
-SETTLE_TOLERANCE = 0.004  #: rad, present within this of the goals = the servos arrived (about 2.5 ticks)
+TICK = 2 * math.pi / 4096  #: rad, one position tick of an X-series servo
+#: the servos have arrived when the positions read back are within half a tick (plus rounding) of the goals, or
+#: stopped changing within this of them (a real servo may hold a tick or two off under load)
+SETTLE_TOLERANCE = 3 * TICK
 EXIT_UNREACHED = 3  #: the CLI's exit status when the last target was not reached within tolerance
 
 
@@ -324,12 +327,13 @@ class _Run:
         self.target_at = follower.target_at
         self.start = follower.start
         self.present: np.ndarray | None = None
+        self.previous: np.ndarray | None = None
         self.q_cmd: np.ndarray | None = None
         self._done_tick: int | None = None
 
     def observe(self, tick: int, q_cmd: np.ndarray, q_present: np.ndarray | None) -> None:
         self.follower.observe(tick, q_cmd, q_present)
-        self.q_cmd, self.present = q_cmd, q_present
+        self.q_cmd, self.previous, self.present = q_cmd, self.present, q_present
 
     def finished(self, tick: int) -> bool:
         if not self.follower.finished(tick):
@@ -339,7 +343,9 @@ class _Run:
             return True  # a dry run (or nothing ran): the goals are the result
         if self._done_tick is None:
             self._done_tick = tick
-        settled = float(np.max(np.abs(self.present - self.q_cmd))) <= SETTLE_TOLERANCE
+        off = float(np.max(np.abs(self.present - self.q_cmd)))
+        still = self.previous is not None and np.array_equal(self.present, self.previous)
+        settled = off <= 0.6 * TICK or (still and off <= SETTLE_TOLERANCE)
         return settled or tick - self._done_tick >= self.settle_ticks
 
 

@@ -22,7 +22,7 @@ from collections.abc import Sequence
 from retarget.errors import BusError, RetargetError
 
 #: Subcommands in the order ``--help`` lists them.
-COMMANDS: tuple[str, ...] = ("replay", "export", "inspect", "arm", "scan", "sim")
+COMMANDS: tuple[str, ...] = ("replay", "teleop", "export", "inspect", "arm", "scan", "sim")
 
 EXIT_OK = 0
 EXIT_USAGE = 2  #: bad input: a file, a config key, an option value
@@ -33,6 +33,9 @@ EPILOG = """\
 examples:
   retarget replay                      the demo clip on wx250s, in-process simulated bus
   retarget replay clip.bvh --fast      as fast as possible on a virtual clock
+  retarget teleop --to 0.3,0,0.2       move the tool point there; exit 0 reached, 3 unreachable
+  retarget teleop --stdin --fast       follow 'x y z' / JSON target lines from stdin, in order
+  retarget teleop --interactive        keys nudge the target; shows target, reached point, joints
   retarget export clip.bvh -o t.csv    the retargeted joint trajectory as CSV, no bus
   retarget inspect clip.bvh            show the skeleton, frame rate and arm chains
   retarget inspect clip.bvh --json     the same as JSON on stdout

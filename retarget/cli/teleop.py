@@ -1,0 +1,302 @@
+"""``retarget teleop``: move the arm's tool point to where you say: one point, a stream (stdin, UDP), or keys.
+
+Targets are metres in the arm's base frame (x forward, y left, z up), or in the world frame with
+``--frame world`` (the base sits at ``--base-pose`` in it; arm files carry no world pose, so by default
+world = base).  Every target goes through the same gate (size limit, parse, finite, inside the box and
+within reach + margin); rejected ones are counted and never move the arm.  The tool point's setpoint
+moves at most ``--max-speed`` m/s and each joint at most its max velocity; the same control loop,
+bus options, telemetry, summary and Ctrl-C shutdown as ``retarget replay``.
+
+Exit status: 0 when the last target was reached within ``--tolerance`` (checked by FK of the positions
+read back from the servos), 3 when it was not (the arm stays at the nearest point it reached), 2 for bad
+input, 4 for a bus failure, 130 after Ctrl-C.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import threading
+from typing import TYPE_CHECKING, Any
+
+from retarget.cli._bus import add_bus_arguments, build_bus, check_bus_options, sigint_stops
+from retarget.errors import ConfigError
+
+if TYPE_CHECKING:
+    from retarget.arm import Arm
+    from retarget.control import TickRecord
+    from retarget.teleop import Follower, TeleopResult
+    from retarget.teleop_input import TargetGate, _Source
+
+DEFAULT_ARM = "wx250s"
+DEFAULT_UDP_TIMEOUT = 1.0  #: s, the dead-man timeout of --udp unless --timeout says otherwise
+
+EXAMPLES = """\
+examples:
+  retarget teleop --to 0.3,0,0.2                    move the tool point there (simulated wx250s), report, exit 0/3
+  retarget teleop --to 0.3,0,0.2 --rpy 0,90,0 --fast   with the tool pointing down, on a virtual clock
+  retarget teleop --to 1,2,0.2 --frame world --base-pose 0.7,2,0,0,0,90
+  printf '0.3 0 0.2\\n0.3 0.1 0.25\\n' | retarget teleop --stdin --fast --json
+  retarget teleop --udp 9000 --timeout 0.5 --port /dev/ttyUSB0     datagrams on 127.0.0.1:9000
+  retarget teleop --interactive --port /dev/ttyUSB0 --max-speed 0.05
+  retarget teleop --stdin --telemetry run.csv < path.txt            one 'x y z' or JSON line per target
+"""
+
+
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+    parser = subparsers.add_parser(
+        "teleop",
+        help="move the tool point to a target: one point, a stream on stdin/UDP, or keys",
+        description=__doc__.split("\n\n")[0].split(": ", 1)[1] + "\n\n" + "\n\n".join(__doc__.split("\n\n")[1:]),
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    mode = parser.add_argument_group("where the targets come from (one of)").add_mutually_exclusive_group(required=True)
+    mode.add_argument("--to", metavar="X,Y,Z", help="one target, metres; exit 0 when reached, 3 when unreachable")
+    mode.add_argument("--stdin", action="store_true", help='targets as lines: \'x y z\' or JSON {"x":..,"y":..,"z":..}')
+    mode.add_argument("--udp", metavar="[HOST:]PORT", help="targets as datagrams; binds 127.0.0.1 unless HOST is given")
+    mode.add_argument("--interactive", action="store_true", help="keys nudge the target (needs a terminal)")
+
+    t = parser.add_argument_group("targets")
+    t.add_argument("--rpy", metavar="R,P,Y", help="with --to: tool orientation, degrees (URDF roll-pitch-yaw)")
+    t.add_argument("--frame", choices=("base", "world"), default="base", help="frame of the targets (default base)")
+    t.add_argument("--base-pose", metavar="X,Y,Z[,R,P,Y]", help="the arm base in the world (m, deg); default origin")
+    t.add_argument(
+        "--timeout", metavar="S", help=f"hold when no target came for S s (default: off; --udp {DEFAULT_UDP_TIMEOUT:g})"
+    )
+    t.add_argument("--max-speed", default="0.2", metavar="M/S", help="Cartesian speed limit of the tool (default 0.2)")
+    t.add_argument("--tolerance", default="0.005", metavar="M", help="reached within this distance (default 0.005)")
+    t.add_argument("--box", metavar="X0,Y0,Z0,X1,Y1,Z1", help="accept targets only inside this box, metres, base frame")
+    t.add_argument("--margin", default="0.2", metavar="M", help="accept targets up to reach + M from the shoulder")
+    t.add_argument("--max-bytes", default="1024", metavar="N", help="size limit of a line or datagram (default 1024)")
+
+    b = parser.add_argument_group("arm, bus and loop (as in replay; --shutdown defaults to hold here)")
+    b.add_argument("--arm", default=DEFAULT_ARM, help=f"arm name or TOML/URDF path (default {DEFAULT_ARM})")
+    b.add_argument("--rate", default="100", metavar="HZ", help="control ticks per second (default 100)")
+    b.add_argument("--velocity-scale", default="1", metavar="F", help="fraction of each joint's max speed (default 1)")
+    b.add_argument("--max-ticks", default=None, metavar="N", help="stop after N ticks")
+    add_bus_arguments(b, shutdown="hold")
+    return parser
+
+
+def _numbers(text: str | None, *, option: str, count: tuple[int, ...]) -> list[float] | None:
+    if text is None:
+        return None
+    try:
+        values = [float(v) for v in text.replace(" ", "").split(",")]
+    except ValueError:
+        values = []
+    if len(values) not in count:
+        want = " or ".join(str(c) for c in count)
+        raise ConfigError(f"Expected {want} comma-separated numbers", key=option, value=text)
+    return values
+
+
+def _check_options(args: argparse.Namespace) -> dict[str, Any]:
+    """Validate the option values (ConfigError naming the option); returns the parsed numbers."""
+    from retarget.cli.replay import number
+
+    check_bus_options(args)
+    if args.rpy is not None and args.to is None:
+        raise ConfigError("--rpy goes with --to (stream messages carry their own rpy)", key="--rpy", value=args.rpy)
+    if args.interactive and args.fast:
+        raise ConfigError("--interactive runs in real time; drop --fast", key="--fast", value=True)
+    if args.base_pose is not None and args.frame != "world":
+        raise ConfigError("--base-pose goes with --frame world", key="--base-pose", value=args.base_pose)
+    out: dict[str, Any] = {
+        "max_speed": number(args.max_speed, option="--max-speed"),
+        "tolerance": number(args.tolerance, option="--tolerance"),
+        "margin": number(args.margin, option="--margin"),
+        "max_bytes": number(args.max_bytes, option="--max-bytes", integer=True),
+        "timeout": number(args.timeout, option="--timeout"),
+        "box": _numbers(args.box, option="--box", count=(6,)),
+        "base_pose": _numbers(args.base_pose, option="--base-pose", count=(3, 6)),
+    }
+    if out["timeout"] is None and args.udp is not None:
+        out["timeout"] = DEFAULT_UDP_TIMEOUT
+    for key in ("tolerance", "timeout"):
+        value = out[key]
+        if value is not None and not (value > 0 and value < float("inf")):
+            raise ConfigError("Expected a number > 0", key=f"--{key}", value=value)
+    if not out["max_speed"] > 0:
+        raise ConfigError("Expected a speed > 0 m/s ('inf' for none)", key="--max-speed", value=out["max_speed"])
+    if not out["max_bytes"] >= 1:
+        raise ConfigError("Expected at least 1 byte", key="--max-bytes", value=out["max_bytes"])
+    return out
+
+
+def _gate(args: argparse.Namespace, arm: Arm, clock: Any, opts: dict[str, Any]) -> TargetGate:
+    from retarget.teleop_input import BasePose, TargetBounds, TargetGate
+
+    try:
+        bounds = TargetBounds.for_arm(arm, margin=opts["margin"], box=opts["box"])
+    except ConfigError as exc:
+        raise ConfigError(exc.message, key=exc.key if exc.key == "--box" else "--margin", value=exc.value) from None
+    pose = None
+    if args.frame == "world":
+        values = opts["base_pose"] or [0.0, 0.0, 0.0]
+        pose = BasePose.from_xyz_rpy(values[:3], values[3:6] or (0.0, 0.0, 0.0))
+    return TargetGate(bounds, clock=clock, frame_pose=pose, max_bytes=opts["max_bytes"])
+
+
+def _source(args: argparse.Namespace, gate: TargetGate) -> _Source:
+    from retarget.teleop_input import OneShotSource, StdinSource, UdpSource, parse_address
+
+    if args.to is not None:
+        return OneShotSource(gate, args.to, rpy=args.rpy)
+    if args.stdin:
+        return StdinSource(gate)
+    if args.udp is not None:
+        host, port = parse_address(args.udp)
+        source = UdpSource(gate, host, port)
+        print(f"retarget: listening for targets on udp {source.address[0]}:{source.address[1]}", file=sys.stderr)
+        return source
+    raise AssertionError("the argument parser requires a mode")
+
+
+def _progress(follower: Follower) -> Any:
+    def show(r: TickRecord) -> None:
+        tool = follower.tool
+        goal = follower.last_target
+        dist = (
+            "" if goal is None or tool is None else f"  {1e3 * float(((tool - goal) ** 2).sum() ** 0.5):6.1f} mm to go"
+        )
+        print(f"retarget: t={r.time:6.1f} s  {follower.phase.value:<8}{dist}", file=sys.stderr, flush=True)
+
+    return show
+
+
+def _name(args: argparse.Namespace) -> str:
+    if args.to is not None:
+        return f"--to {args.to}" + (f" --rpy {args.rpy}" if args.rpy else "")
+    return "--stdin" if args.stdin else f"--udp {args.udp}" if args.udp else "--interactive"
+
+
+def run(args: argparse.Namespace) -> int:
+    import retarget
+    from retarget.cli import EXIT_INTERRUPTED
+    from retarget.cli.replay import number
+    from retarget.control import LoopConfig
+    from retarget.telemetry import TelemetryWriter
+    from retarget.teleop import EXIT_UNREACHED, Follower, run_teleop
+
+    opts = _check_options(args)
+    config = LoopConfig(
+        rate=number(args.rate, option="--rate"),
+        velocity_scale=number(args.velocity_scale, option="--velocity-scale"),
+        max_ticks=number(args.max_ticks, option="--max-ticks", integer=True),
+    )
+    if args.interactive and not (sys.stdin.isatty() and sys.stdout.isatty()):
+        raise ConfigError("--interactive needs a terminal on stdin and stdout", key="--interactive", value=True)
+    arm = retarget.load_arm(args.arm)
+    setup = build_bus(args, arm)
+    source = None
+    telemetry = None
+    stop = threading.Event()
+    try:
+        gate = _gate(args, arm, setup.clock, opts)
+        if not args.interactive:
+            source = _source(args, gate).start()
+        if args.telemetry is not None:
+            out = sys.stdout if args.telemetry == "-" else args.telemetry
+            telemetry = TelemetryWriter(out, arm.joint_names).open()
+        with sigint_stops(stop.set):
+            setup.bus.connect()
+            try:
+                if args.interactive:
+                    result = _interactive(arm, setup, gate, config, opts, stop, telemetry)
+                else:
+                    follower = Follower(
+                        arm,
+                        source,
+                        clock=setup.clock,
+                        rate=config.rate,
+                        max_speed=opts["max_speed"],
+                        timeout=opts["timeout"],
+                        lockstep=args.fast,
+                    )
+                    progress = _progress(follower) if args.progress or sys.stderr.isatty() else None
+                    result = run_teleop(
+                        arm,
+                        follower,
+                        config=config,
+                        clock=setup.clock,
+                        bus=setup.bus,
+                        tolerance=opts["tolerance"],
+                        on_tick=telemetry,
+                        on_progress=progress,
+                        stop=stop,
+                        name=_name(args),
+                    )
+            finally:
+                setup.bus.close()
+    finally:
+        if source is not None:
+            source.close()
+        if telemetry is not None:
+            telemetry.close()
+        setup.release()
+    _report(args, result)
+    if result.summary.interrupted:
+        return EXIT_INTERRUPTED
+    if result.target is not None and not result.reached_target and not args.interactive:
+        return EXIT_UNREACHED
+    return 0
+
+
+def _report(args: argparse.Namespace, result: TeleopResult) -> None:
+    s = result.summary
+    head = f"teleop{' (interrupted)' if s.interrupted else ''}: {s.clip} on {s.arm}: {s.ticks} ticks at "
+    head += f"{s.rate_hz:g} Hz, {s.run_time_s:.2f} s in {s.wall_time_s:.3f} s ({s.real_time_factor:.1f}x real time)"
+    print("\n".join([head, *s.format().split("\n")[1:], result.format()]), file=sys.stderr)
+    if args.json:
+        json.dump({**s.to_dict(), "teleop": result.to_dict()}, sys.stdout, indent=2)
+        sys.stdout.write("\n")
+        return
+    if result.target is None:
+        print("no target received", file=sys.stderr)
+        return
+    r, t = result.reached, result.target
+    verdict = "reached" if result.reached_target else "NOT reached (nearest point)"
+    print(
+        f"target {t[0]:.4f} {t[1]:.4f} {t[2]:.4f} m  reached {r[0]:.4f} {r[1]:.4f} {r[2]:.4f} m  "
+        f"residual {result.residual * 1e3:.2f} mm  {verdict} (tolerance {result.tolerance * 1e3:g} mm)"
+    )
+
+
+def _interactive(arm, setup, gate, config, opts, stop, telemetry) -> TeleopResult:
+    """The curses UI around the loop: keys feed a KeySource, the screen is drawn from on_tick."""
+    import curses
+
+    from retarget.teleop import Follower, run_teleop, tool_point
+    from retarget.teleop_tui import Jog, KeySource, TerminalUI
+
+    q0 = setup.bus.read_positions()
+    jog = Jog(target=tool_point(arm, q0), home=tool_point(arm, arm.home), bounds=gate.bounds)
+    source = KeySource(gate, jog)
+    follower = Follower(
+        arm, source, clock=setup.clock, rate=config.rate, max_speed=opts["max_speed"], timeout=opts["timeout"]
+    )
+
+    def session(screen: Any) -> TeleopResult:
+        ui = TerminalUI(screen, source, arm, stop=stop.set)
+
+        def on_tick(record: TickRecord) -> None:
+            ui(record)
+            if telemetry is not None:
+                telemetry(record)
+
+        return run_teleop(
+            arm,
+            follower,
+            config=config,
+            clock=setup.clock,
+            bus=setup.bus,
+            tolerance=opts["tolerance"],
+            on_tick=on_tick,
+            stop=stop,
+            name="--interactive",
+        )
+
+    return curses.wrapper(session)

@@ -1,0 +1,298 @@
+"""Teleop sessions on the simulated bus (through the real driver), checked from the simulated servos' registers
+with an independent FK: one-shot reached, unreachable -> nearest point, a stream followed in order, garbage
+causes no motion, a stale stream holds, holding runs no IK, the Cartesian speed limit."""
+
+from __future__ import annotations
+
+import io
+import math
+import random
+
+import numpy as np
+import pytest
+
+import retarget
+from retarget.clock import VirtualClock
+from retarget.control import LoopConfig, TickRecord
+from retarget.errors import ConfigError
+from retarget.teleop import Follower, Phase, run_teleop, tool_point
+from retarget.teleop_input import OneShotSource, StdinSource, TargetBounds, TargetGate, UdpSource, _Source
+
+from .test_teleop_input import garbage
+
+TICK_RAD = 2 * math.pi / 4096
+
+
+@pytest.fixture(scope="module")
+def arm():
+    return retarget.load_arm("wx250s")
+
+
+# ------------------------------------------------------------------------------------------------ independent FK
+
+
+def _rot(axis: str, a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    R = {
+        "x": [[1, 0, 0], [0, c, -s], [0, s, c]],
+        "y": [[c, 0, s], [0, 1, 0], [-s, 0, c]],
+        "z": [[c, -s, 0], [s, c, 0], [0, 0, 1]],
+    }
+    T = np.eye(4)
+    T[:3, :3] = R[axis]
+    return T
+
+
+def _trans(x: float, y: float, z: float) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, 3] = (x, y, z)
+    return T
+
+
+#: WidowX-250 6DOF from the Interbotix URDF (wx250s.urdf.xacro): joint origin (all rpy 0) and axis, tool offset
+WX250S = [
+    ((0, 0, 0.072), "z"),  # waist
+    ((0, 0, 0.03865), "y"),  # shoulder
+    ((0.04975, 0, 0.25), "y"),  # elbow
+    ((0.175, 0, 0), "x"),  # forearm_roll
+    ((0.075, 0, 0), "y"),  # wrist_angle
+    ((0.065, 0, 0), "x"),  # wrist_rotate
+]
+WX250S_TOOL = (0.093575, 0, 0)  # ee_gripper_link
+
+
+def wx250s_tool(q: np.ndarray) -> np.ndarray:
+    """Tool point (3,) metres of joint angles (6,) radians, by a plain chain of 4x4 transforms."""
+    T = np.eye(4)
+    for (xyz, axis), angle in zip(WX250S, q, strict=True):
+        T = T @ _trans(*xyz) @ _rot(axis, angle)
+    return (T @ _trans(*WX250S_TOOL))[:3, 3]
+
+
+def servo_joint_angles(simbus, arm) -> np.ndarray:
+    """Joint angles from the primary servos' Present Position registers: (ticks - 2048) x 2 pi / 4096.
+
+    The driver reverses servos with Drive Mode, so the registers already read in the joint's sense."""
+    assert all(j.servos[0].offset == 0 for j in arm.joints)
+    return np.array([(simbus.servo(j.servos[0].id).get("Present Position") - 2048) * TICK_RAD for j in arm.joints])
+
+
+def goal_registers(simbus) -> dict[int, int]:
+    return {s.id: s.get("Goal Position") for s in simbus.servos}
+
+
+def test_independent_fk_matches_arm_fk(arm):
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        q = rng.uniform(arm.lower, arm.upper)
+        np.testing.assert_allclose(wx250s_tool(q), tool_point(arm, q), atol=1e-12)
+
+
+# ------------------------------------------------------------------------------------------------ harness
+
+
+@pytest.fixture
+def session(arm):
+    """``session(source_factory, **follower_kwargs)`` -> (result, records, simbus, goals after connect)."""
+    import sim
+    from drivers import DynamixelBus
+
+    def go(make_source, *, max_ticks=None, on_tick=None, settle_time=2.0, **kwargs):
+        clock = VirtualClock()
+        simbus = sim.SimBus.from_arm(arm, clock=clock, faults=sim.Faults(wire=True))
+        url = sim.attach(simbus)
+        gate = TargetGate(TargetBounds.for_arm(arm), clock=clock)
+        source = make_source(gate)
+        follower = Follower(arm, source, clock=clock, rate=100.0, **kwargs)
+        records: list[TickRecord] = []
+
+        def tick(r):
+            records.append(r)
+            if on_tick is not None:
+                on_tick(r, source)
+
+        bus = DynamixelBus(arm, url, clock=clock, shutdown="hold")
+        bus.connect()
+        goals0 = goal_registers(simbus)
+        try:
+            result = run_teleop(
+                arm,
+                follower,
+                config=LoopConfig(max_ticks=max_ticks),
+                clock=clock,
+                bus=bus,
+                on_tick=tick,
+                settle_time=settle_time,
+            )
+        finally:
+            bus.close()
+            source.close()
+            sim.unregister(url.removeprefix("sim://@"))
+        return result, records, simbus, goals0, follower
+
+    return go
+
+
+# ------------------------------------------------------------------------------------------------ one shot
+
+
+@pytest.mark.parametrize("to", ["0.3,0,0.2", "0.2,0.2,0.35", "0.35,-0.15,0.1"], ids=["front", "left-high", "right-low"])
+def test_one_shot_is_reached_on_the_servos(arm, session, to):
+    result, records, simbus, _, _ = session(lambda g: OneShotSource(g, to))
+    target = np.array([float(v) for v in to.split(",")])
+    reached = wx250s_tool(servo_joint_angles(simbus, arm))
+    assert np.linalg.norm(reached - target) < 3e-3  # IK tolerance + a tick of quantisation per joint
+    np.testing.assert_allclose(result.reached, reached, atol=1e-9)  # the result reports the servos' point
+    assert result.reached_target and result.residual == pytest.approx(np.linalg.norm(reached - target))
+    assert [v.reached for v in result.visits] == [True]
+    assert not result.summary.interrupted and result.summary.bus_errors == 0
+    q = np.array([r.q_cmd for r in records])
+    assert np.all(q >= arm.lower) and np.all(q <= arm.upper)
+    assert np.all(np.abs(np.diff(q, axis=0)) <= arm.max_velocity / 100 + 1e-12)
+
+
+def test_unreachable_goes_to_the_nearest_point(arm, session):
+    from retarget.mapping import arm_geometry
+
+    result, _, simbus, _, follower = session(lambda g: OneShotSource(g, "0.75,0,0.3"))
+    target = np.array([0.75, 0, 0.3])
+    reached = wx250s_tool(servo_joint_angles(simbus, arm))
+    g = arm_geometry(arm)
+    # stretched toward the target: on the line from the shoulder pivot, at the full reach
+    direction = (target - g.pivot) / np.linalg.norm(target - g.pivot)
+    along = reached - g.pivot
+    assert np.linalg.norm(along) == pytest.approx(g.reach, abs=0.01)
+    assert np.linalg.norm(along - direction * (along @ direction)) < 0.01
+    assert not result.reached_target and result.residual > 0.05
+    assert [v.reached for v in result.visits] == [False] and follower.phase is Phase.HOLDING
+
+
+def test_holding_runs_no_ik(arm, session):
+    result, records, _, _, _ = session(lambda g: OneShotSource(g, "0.3,0,0.2"), settle_time=0.5)
+    held = [r for r in records if r.tick > result.visits[-1].tick]
+    assert result.stats.holds == len(held) >= 1
+    assert all(r.ik_sweeps == 0 for r in held)
+    assert len({tuple(r.q_cmd) for r in held}) == 1
+
+
+@pytest.mark.parametrize("max_speed", [0.05, 0.2], ids=["5cm/s", "20cm/s"])
+def test_cartesian_speed_limit(arm, session, max_speed):
+    result, records, _, _, _ = session(lambda g: OneShotSource(g, "0.35,0.1,0.3"), max_speed=max_speed)
+    moving = [r for r in records if r.tick <= result.visits[0].tick]
+    steps = np.linalg.norm(np.diff([r.target for r in moving], axis=0), axis=1) / np.diff([r.tick for r in moving])
+    assert steps.max() <= max_speed / 100 + 1e-12
+    assert steps.max() > 0.9 * max_speed / 100  # and it does move at the limit
+
+
+# ------------------------------------------------------------------------------------------------ streams
+
+
+def test_stdin_stream_is_followed_in_order(arm, session):
+    points = [(0.30, 0.0, 0.25), (0.30, 0.10, 0.25), (0.25, 0.10, 0.15), (0.35, -0.05, 0.20), (0.30, 0.0, 0.30)]
+    text = "".join(f"{x} {y} {z}\n" for x, y, z in points).encode()
+    result, records, simbus, _, _ = session(lambda g: StdinSource(g, io.BytesIO(text)).start(), lockstep=True)
+    assert [v.seq for v in result.visits] == [0, 1, 2, 3, 4] and all(v.reached for v in result.visits)
+    # the servos' positions, read back each tick, pass near every point, in order
+    tool = np.array([wx250s_tool(r.q_present) for r in records])
+    first_near = []
+    for p in points:
+        d = np.linalg.norm(tool - np.array(p), axis=1)
+        assert d.min() < 0.01, p
+        first_near.append(int(np.argmax(d < 0.01)))
+    assert first_near == sorted(first_near)
+    np.testing.assert_allclose(wx250s_tool(servo_joint_angles(simbus, arm)), points[-1], atol=3e-3)
+
+
+def test_garbage_lines_cause_no_motion(arm, session):
+    lines = b"\n".join(garbage(random.Random(2), 1000)) + b"\n"
+    result, records, simbus, goals0, _ = session(lambda g: StdinSource(g, io.BytesIO(lines)).start(), lockstep=True)
+    assert goal_registers(simbus) == goals0  # not one goal moved
+    assert result.received == 0 and sum(result.rejects.values()) == 1000
+    assert all(r.ik_sweeps == 0 for r in records)
+
+
+def test_garbage_datagrams_cause_no_motion(arm, session):
+    import socket
+    import time
+
+    def make(gate):
+        src = UdpSource(gate).start()
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            for i, m in enumerate(garbage(random.Random(4), 1000)):
+                s.sendto(m, src.address)
+                if i % 50 == 49:  # let the reader keep up: loopback drops datagrams on a full buffer
+                    deadline = time.monotonic() + 5
+                    while src.datagrams <= i and time.monotonic() < deadline:
+                        time.sleep(0.001)
+        deadline = time.monotonic() + 5
+        while src.datagrams < 1000 and time.monotonic() < deadline:
+            time.sleep(0.001)
+        return src
+
+    result, records, simbus, goals0, _ = session(make, max_ticks=50)
+    assert goal_registers(simbus) == goals0
+    assert result.received == 0 and sum(result.rejects.values()) == 1000
+    assert all(r.ik_sweeps == 0 for r in records) and result.stats.holds == 50
+
+
+def test_stale_stream_holds_position(arm, session):
+    gate_holder = {}
+
+    def make(gate):
+        gate_holder["gate"] = gate
+        return _Source(gate)  # fed by the test, never closed
+
+    def feed(r: TickRecord, source):
+        if r.tick == 0:
+            source._feed("0.45 0.1 0.25")  # far: still on the way when the stream goes quiet
+        if r.tick == 150:
+            source._feed("0.3 0 0.2")
+
+    result, records, _, _, follower = session(make, max_ticks=400, on_tick=feed, timeout=0.5)
+    by_tick = {r.tick: r for r in records}
+    assert result.stale_events >= 1 and result.visits[0].reached is False  # given up when it went stale
+    # between going stale (0.5 s after the first target) and the second target: no motion, no IK
+    stale = [by_tick[k] for k in range(52, 151)]
+    assert len({tuple(r.q_cmd) for r in stale}) == 1 and all(r.ik_sweeps == 0 for r in stale)
+    assert not np.allclose(by_tick[51].q_cmd, records[0].q_cmd)  # it had been moving
+    # the stream resumed: it moved again, and went stale again 0.5 s after the second target
+    assert not np.allclose(by_tick[200].q_cmd, by_tick[150].q_cmd)
+    assert follower.phase is Phase.STALE and result.stale_events == 2
+
+
+# ------------------------------------------------------------------------------------------------ errors
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"rate": 0}, "--rate"),
+        ({"max_speed": -1}, "--max-speed"),
+        ({"max_speed": float("nan")}, "--max-speed"),
+        ({"tolerance": 0}, "--tolerance"),
+        ({"timeout": 0}, "--timeout"),
+    ],
+    ids=["rate", "speed", "speed-nan", "tolerance", "timeout"],
+)
+def test_follower_option_errors(arm, kwargs, match):
+    clock = VirtualClock()
+    source = _Source(TargetGate(TargetBounds.for_arm(arm), clock=clock))
+    args = {"rate": 100.0, **kwargs}
+    with pytest.raises(ConfigError, match=match):
+        Follower(arm, source, clock=clock, **args)
+
+
+def test_follower_needs_start(arm):
+    clock = VirtualClock()
+    f = Follower(arm, _Source(TargetGate(TargetBounds.for_arm(arm), clock=clock)), clock=clock, rate=100)
+    with pytest.raises(RuntimeError, match="start"):
+        f.target_at(0, 0.0)
+
+
+def test_dry_run_without_bus(arm):
+    clock = VirtualClock()
+    gate = TargetGate(TargetBounds.for_arm(arm), clock=clock)
+    f = Follower(arm, OneShotSource(gate, "0.3,0,0.2"), clock=clock, rate=100)
+    result = run_teleop(arm, f, config=LoopConfig(), clock=clock)
+    assert result.summary.dry_run and result.reached_target
+    np.testing.assert_allclose(result.reached, wx250s_tool(result.q_final), atol=1e-12)
