@@ -28,11 +28,11 @@ class Pose:
 
     ``positions``: ``(n_frames, n_joints, 3)``; ``end_sites``: ``(n_frames,
     n_end_sites, 3)``; ``rotations``: ``(n_frames, n_joints, 3, 3)`` joint
-    frame -> world, or None when not asked for.
+    frame -> world; each None when not asked for.
     """
 
     positions: np.ndarray
-    end_sites: np.ndarray
+    end_sites: np.ndarray | None
     rotations: np.ndarray | None
 
 
@@ -46,6 +46,7 @@ def forward_kinematics(
     end_site_offsets: Sequence[Sequence[float]] = (),
     *,
     rotations: bool = False,
+    end_sites: bool = True,
 ) -> Pose:
     """Global positions (and rotations) of every joint and End Site for every frame.
 
@@ -54,7 +55,10 @@ def forward_kinematics(
     ``channels`` ``(n_frames, n_channels)`` (degrees, file units).
 
     Only one depth level of world rotations is kept at a time (as nine
-    ``(k, n_frames)`` rows), unless ``rotations`` asks for all of them.
+    ``(k, n_frames)`` rows), unless ``rotations`` asks for all of them; and
+    only for joints that need one: those with child joints, with End Sites
+    (when ``end_sites``), or all (when ``rotations``).  Without
+    ``end_sites``, ``Pose.end_sites`` is None.
     """
     parents = np.asarray(parents, dtype=np.intp)
     nj, n = len(parents), channels.shape[0]
@@ -62,42 +66,57 @@ def forward_kinematics(
     columns = channels.T  # (C, n) view
     positions = np.empty((n, nj, 3))
     all_rot = np.empty((n, nj, 3, 3)) if rotations else None
-    sites = np.empty((n, len(end_site_parents), 3))
+    site_parents = np.asarray(end_site_parents, dtype=np.intp) if end_sites else np.zeros(0, dtype=np.intp)
     site_offsets = np.asarray(end_site_offsets, dtype=np.float64).reshape(-1, 3)
-    site_parents = np.asarray(end_site_parents, dtype=np.intp)
-    slot = np.zeros(nj, dtype=np.intp)  # a joint's row within its level
+    sites = np.empty((n, site_parents.size, 3)) if end_sites else None
+    needs_rotation = np.ones(nj, dtype=bool) if rotations else np.zeros(nj, dtype=bool)
+    needs_rotation[parents[parents >= 0]] = True
+    needs_rotation[site_parents] = True
+    slot = np.zeros(nj, dtype=np.intp)  # a joint's row in its level's rotation rows
     prev_rot: list[list[np.ndarray]] = []
     prev_pos: list[np.ndarray] = []
     for a, b in level_bounds:
         joints = order[a:b]
-        slot[joints] = np.arange(b - a)
-        local = _local_rotations(joints, channel_names, first_columns, columns)
+        k = b - a
+        turning = joints[needs_rotation[joints]]
+        slot[turning] = np.arange(turning.size)
         trans = _translations(joints, offsets, channel_names, first_columns, columns)  # (3, k, 1 or n)
+        local = _local_rotations(turning, channel_names, first_columns, columns) if turning.size else None
         if parents[joints[0]] < 0:  # the roots, alone in the first level
-            world = [[_rows(local[i][c], b - a, n) for c in range(3)] for i in range(3)]
-            pos = [np.broadcast_to(trans[i], (b - a, n)).copy() for i in range(3)]
+            pos = [np.broadcast_to(trans[i], (k, n)).copy() for i in range(3)]
+            world = [[_rows(local[i][c], turning.size, n) for c in range(3)] for i in range(3)] if local else []
         else:
-            ps = slot[parents[joints]]
-            pick = slice(int(ps[0]), int(ps[0]) + 1) if np.all(ps == ps[0]) else ps
-            prot = [[prev_rot[i][c][pick] for c in range(3)] for i in range(3)]  # (k or 1, n)
-            world = [
-                [_rows(_dot3(prot[i], [local[0][c], local[1][c], local[2][c]]), b - a, n) for c in range(3)]
-                for i in range(3)
-            ]
-            pos = [
-                _rows(_dot3(prot[i], [trans[0], trans[1], trans[2]]) + prev_pos[i][pick], b - a, n) for i in range(3)
-            ]
+            prot, ppos = _parent_rows(prev_rot, prev_pos, slot[parents[joints]])
+            pos = [_rows(_dot3(prot[i], [trans[0], trans[1], trans[2]]) + ppos[i], k, n) for i in range(3)]
+            world = []
+            if local:
+                if turning.size < k:
+                    prot, _ = _parent_rows(prev_rot, prev_pos, slot[parents[turning]])
+                world = [
+                    [_rows(_dot3(prot[i], [local[0][c], local[1][c], local[2][c]]), turning.size, n) for c in range(3)]
+                    for i in range(3)
+                ]
         for i in range(3):
             positions[:, joints, i] = pos[i].T
             if all_rot is not None:
                 for c in range(3):
                     all_rot[:, joints, i, c] = world[i][c].T
-        for k in np.flatnonzero(np.isin(site_parents, joints)):
-            r, off = slot[site_parents[k]], site_offsets[k]
-            for i in range(3):
-                sites[:, k, i] = pos[i][r] + world[i][0][r] * off[0] + world[i][1][r] * off[1] + world[i][2][r] * off[2]
-        prev_rot, prev_pos = world, pos
+        if sites is not None:
+            for e in np.flatnonzero(np.isin(site_parents, joints)):
+                r, p, off = slot[site_parents[e]], pos, site_offsets[e]
+                row = int(np.flatnonzero(joints == site_parents[e])[0])
+                for i in range(3):
+                    sites[:, e, i] = (
+                        p[i][row] + world[i][0][r] * off[0] + world[i][1][r] * off[1] + world[i][2][r] * off[2]
+                    )
+        prev_rot, prev_pos = world, [pos[i][needs_rotation[joints]] for i in range(3)]
     return Pose(positions=positions, end_sites=sites, rotations=all_rot)
+
+
+def _parent_rows(prev_rot: list, prev_pos: list, rows: np.ndarray) -> tuple[list, list]:
+    """The parents' rotation and position rows (a broadcastable single row when all share one parent)."""
+    pick = slice(int(rows[0]), int(rows[0]) + 1) if np.all(rows == rows[0]) else rows
+    return [[prev_rot[i][c][pick] for c in range(3)] for i in range(3)], [prev_pos[i][pick] for i in range(3)]
 
 
 def _dot3(row: list, col: list) -> np.ndarray:

@@ -198,7 +198,7 @@ class Motion:
     # -------------------------------------------------------------------------------------------- FK
     def positions(self) -> np.ndarray:
         """``(n_frames, n_joints, 3)`` float64 global joint positions, file units, BVH world frame."""
-        return self._pose(rotations=False).positions
+        return self._pose().positions
 
     def global_transforms(self) -> tuple[np.ndarray, np.ndarray]:
         """``(rotations (n_frames, n_joints, 3, 3), positions (n_frames, n_joints, 3))``: joint frame -> world."""
@@ -207,12 +207,13 @@ class Motion:
 
     def end_site_positions(self) -> np.ndarray:
         """``(n_frames, n_end_sites, 3)`` float64 global End Site positions, file units."""
-        return self._pose(rotations=False).end_sites
+        return self._pose(end_sites=True).end_sites  # type: ignore[return-value]
 
-    def _pose(self, *, rotations: bool) -> Pose:
+    def _pose(self, *, rotations: bool = False, end_sites: bool = False) -> Pose:
+        """The cached FK results, computed (again, with more in it) only when something asked for is missing."""
         pose = self._cached_pose
-        if pose is None or (rotations and pose.rotations is None):
-            pose = forward_kinematics(
+        if pose is None or (rotations and pose.rotations is None) or (end_sites and pose.end_sites is None):
+            new = forward_kinematics(
                 self.parents,
                 self.offsets,
                 [lay.names for lay in self.layout],
@@ -221,12 +222,17 @@ class Motion:
                 [e.parent for e in self.end_sites],
                 [e.offset for e in self.end_sites],
                 rotations=rotations,
+                end_sites=end_sites or rotations,
+            )
+            old = pose or new  # keep the arrays already handed out
+            pose = Pose(
+                positions=old.positions,
+                end_sites=old.end_sites if old.end_sites is not None else new.end_sites,
+                rotations=old.rotations if old.rotations is not None else new.rotations,
             )
             for array in (pose.positions, pose.end_sites, pose.rotations):
                 if array is not None:
                     _readonly(array)
-            if self._cached_pose is not None:  # keep the arrays already handed out
-                pose = Pose(self._cached_pose.positions, self._cached_pose.end_sites, pose.rotations)
             self._cached_pose = pose
         return pose
 

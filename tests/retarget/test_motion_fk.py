@@ -174,3 +174,24 @@ def test_info_properties():
         motion.joint_index("nope")
     assert "clip.bvh" in repr(motion) and "90 frames" in repr(motion)
     np.testing.assert_allclose(motion.rest_positions()[0], [1.0, 2.0, 3.0])
+
+
+@pytest.mark.parametrize("first", ["positions", "end_sites", "rotations"])
+def test_any_order_of_requests_gives_the_reference(first):
+    root = chain(["ZXY", "YXZ", "XZY"])
+    root.children.append(J("leaf", (1.0, 2.0, 3.0), ("Xrotation", "Zrotation")))  # no children, no End Site
+    root.children[0].children.append(J("twig", (0.0, 3.0, 0.0), ("Yrotation",), end=(0.0, 1.0, 0.0)))
+    frames = random_frames(root, 7, seed=9)
+    motion = parse_bvh(bvh_text(root, frames, fmt="{:.17g}"))
+    rot_ref, pos_ref, end_ref = reference_fk(root, frames)
+    calls = {
+        "positions": motion.positions,
+        "end_sites": motion.end_site_positions,
+        "rotations": lambda: motion.global_transforms()[0],
+    }
+    got = {name: calls[name]() for name in [first, *[n for n in calls if n != first]]}
+    tol = 1e-9 * np.abs(pos_ref).max()
+    np.testing.assert_allclose(got["positions"], pos_ref, rtol=0, atol=tol)
+    np.testing.assert_allclose(got["end_sites"], end_ref, rtol=0, atol=tol)
+    np.testing.assert_allclose(got["rotations"], rot_ref, rtol=0, atol=1e-9)
+    assert motion.positions() is got["positions"]  # arrays handed out stay the cached ones
