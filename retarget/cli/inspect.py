@@ -17,6 +17,12 @@ from typing import Any
 
 from retarget.errors import BvhError
 
+DESCRIPTION = (
+    "Show what is in a BVH file: the joint tree with each joint's channels, frame count, frame rate and duration, "
+    "the rotation orders used, a units guess from the skeleton's height, and the detected arm chains "
+    "(shoulder > elbow > wrist) with their bone lengths. --json prints the same as one JSON object on stdout."
+)
+
 EXAMPLES = """\
 examples:
   retarget inspect                                 the bundled demo clip
@@ -32,7 +38,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser = subparsers.add_parser(
         "inspect",
         help="show a BVH file's skeleton, frame rate, units and arm chains",
-        description=__doc__.split("\n\n")[1].replace("\n", " "),
+        description=DESCRIPTION,
         epilog=EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -140,7 +146,7 @@ def format_text(report: dict) -> str:
     if u["guess"] == "unknown":
         units = (
             f"unknown: {u['height']:.4g} units tall ({u['up_axis']} up); "
-            f"x{u['metres_per_unit']:.4g} would make it 1.7 m"
+            f"{u['metres_per_unit']:.4g} m per unit would make it 1.7 m tall"
         )
     else:
         units = f"{_UNIT_NAMES[u['guess']]} ({u['height']:.4g} {u['guess']} tall, {u['up_axis']} up)"

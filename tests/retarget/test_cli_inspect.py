@@ -80,7 +80,7 @@ def test_unknown_units_say_the_scale(tmp_path, capsys):
     path.write_text(bvh_text(root))
     assert main(["inspect", str(path)]) == 0
     out = capsys.readouterr().out
-    assert "units      unknown: 25 units tall (Y up); x0.068 would make it 1.7 m" in out
+    assert "units      unknown: 25 units tall (Y up); 0.068 m per unit would make it 1.7 m tall" in out
 
 
 def test_bad_file_one_line_exit_2(tmp_path, capsys):
