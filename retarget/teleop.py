@@ -223,6 +223,15 @@ class Follower:
             log.info("target %d unreachable: holding %.1f mm from it", goal.seq, d * 1e3)
             self._leave(False, tick, d)
 
+    def cancel(self) -> None:
+        """Stop steering (the user quit): drop the queue and the current target; the loop holds from the next
+        tick, and the run ends once the servos settle if the source is closed too.  Safe from a callback."""
+        self._queue.clear()
+        self.source.drain()
+        if self.goal is not None:
+            residual = float(np.linalg.norm(self.tool - self.goal.position))
+            self._leave(residual <= self.tolerance, self._last_tick, residual)
+
     def _leave(self, reached: bool, tick: int, residual: float | None = None) -> None:
         goal = self.goal
         assert goal is not None

@@ -135,7 +135,8 @@ _CURSES_KEYS = {
 
 
 class TerminalUI:
-    """Curses screen driven from the loop's ``on_tick``; ``stop`` is called when the user quits."""
+    """Curses screen driven from the loop's ``on_tick``; ``stop`` is called when the user quits (after the
+    key source closed)."""
 
     def __init__(self, screen: Any, source: KeySource, arm: Arm, stop: Callable[[], None]):
         import curses

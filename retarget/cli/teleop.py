@@ -280,7 +280,7 @@ def _interactive(arm, setup, gate, config, opts, stop, telemetry) -> TeleopResul
     )
 
     def session(screen: Any) -> TeleopResult:
-        ui = TerminalUI(screen, source, arm, stop=stop.set)
+        ui = TerminalUI(screen, source, arm, stop=follower.cancel)  # q: hold, settle, end (Ctrl-C: interrupt)
 
         def on_tick(record: TickRecord) -> None:
             ui(record)

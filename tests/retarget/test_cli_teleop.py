@@ -6,8 +6,12 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
 import random
 import re
+import signal
+import threading
+import time
 
 import numpy as np
 import pytest
@@ -122,6 +126,35 @@ def test_garbage_on_stdin_moves_nothing(arm, registered, capsys, monkeypatch):
     assert t["targets_received"] == 0 and sum(t["rejected"].values()) == 1000
     assert goal_registers(simbus) == goals0
     assert err.count("WARNING") < 40  # counted, rate-limited warnings
+
+
+def test_sigint_stops_through_the_shutdown_sequence(arm, registered, capsys):
+    from .test_cli_replay import SYNC_WRITE
+    from .test_control import servo_angles, torque
+
+    simbus, url = registered
+
+    def interrupt_once_running() -> None:
+        deadline = time.monotonic() + 30  # a broken run cannot hang the suite
+        while time.monotonic() < deadline:
+            if sum(1 for e in list(simbus.log) if e.instruction == SYNC_WRITE) >= 20:
+                break
+            time.sleep(0.005)
+        os.kill(os.getpid(), signal.SIGINT)
+
+    watcher = threading.Thread(target=interrupt_once_running, daemon=True)
+    watcher.start()
+    # a slow move (1 cm/s over ~20 cm) that is still under way when Ctrl-C comes
+    code, out, err = teleop(
+        capsys, "--to", "0.3,0,0.2", "--max-speed", "0.01", "--port", url, "--fast", "--shutdown", "rest", "--json"
+    )
+    watcher.join()
+    assert code == 130, err
+    assert json.loads(out)["interrupted"] is True
+    assert "stopping" in err and "teleop (interrupted)" in err
+    assert torque(simbus, arm) == [0] * 8  # moved to rest, then torque off
+    np.testing.assert_allclose(servo_angles(simbus, arm), arm.rest, atol=0.06)
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
 def test_help_has_examples(capsys):
