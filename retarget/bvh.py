@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import logging
 import math
-import os
+import mmap
 import re
 from os import PathLike
 from pathlib import Path
@@ -59,44 +59,31 @@ def load_bvh(path: str | PathLike[str]) -> Motion:
     """
     p = Path(path)
     with open(p, "rb") as f:
-        size = os.fstat(f.fileno()).st_size
-        buf = _buffer(size)
-        got = f.readinto(memoryview(buf)[_PAD : _PAD + size])
-        grown = f.read(1)
-    if got != size or grown:  # changed while we read it: take what is there now
-        return parse_bvh(p.read_bytes(), path=p)
-    return _parse(buf, size, path=p)
+        try:  # map the file: its pages come from the page cache, not a fresh copy
+            text = np.frombuffer(mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ), dtype=np.uint8)
+        except (OSError, ValueError):  # empty, or not mappable (a pipe, /proc): read it
+            text = np.frombuffer(f.read(), dtype=np.uint8)
+    return _parse(text, path=p)
 
 
 def parse_bvh(text: str | bytes, *, path: str | PathLike[str] | None = None) -> Motion:
     """Read BVH from a string (or bytes); ``path`` only names the source in errors and ``Motion.path``."""
     data = text.encode("utf-8") if isinstance(text, str) else bytes(text)
-    buf = _buffer(len(data))
-    buf[_PAD : _PAD + len(data)] = np.frombuffer(data, dtype=np.uint8)
-    return _parse(buf, len(data), path=None if path is None else Path(path))
+    return _parse(np.frombuffer(data, dtype=np.uint8), path=None if path is None else Path(path))
 
 
 # --------------------------------------------------------------------------------------------- whole file
 
-_PAD = bvh_numbers.PAD
 _CONTROL_BYTES = bytes([*range(1, 9), *range(14, 32)])
 _MAX_DEPTH = 500  # nested joints; real skeletons stay under 100
 _HEAD = 1 << 16  # bytes tried first for the header
 
 
-def _buffer(size: int) -> np.ndarray:
-    """A uint8 buffer for ``size`` bytes of file at ``[_PAD : _PAD + size]``, padded with spaces both sides."""
-    buf = np.empty(size + 2 * _PAD, dtype=np.uint8)
-    buf[:_PAD] = 32
-    buf[_PAD + size :] = 32
-    return buf
-
-
-def _parse(buf: np.ndarray, size: int, *, path: Path | None) -> Motion:
-    """Parse the file held in ``buf[_PAD : _PAD + size]`` (see :func:`_buffer`); may modify ``buf``."""
-    text = buf[_PAD : _PAD + size]
-    if size >= 3 and bytes(text[:3]) == b"\xef\xbb\xbf":
-        text[:3] = 32  # a UTF-8 byte order mark: blank it, keeping line numbers
+def _parse(text: np.ndarray, *, path: Path | None) -> Motion:
+    """Parse the file's bytes ``text`` (uint8, may be read-only)."""
+    if bytes(text[:3]) == b"\xef\xbb\xbf":
+        text = text[3:]  # a UTF-8 byte order mark (on line 1: line numbers are unchanged)
+    size = text.size
     head = bytes(text[:_HEAD])
     if not head.strip() and not (text > 32).any():
         raise BvhError("Expected a BVH file starting with HIERARCHY, got an empty file", path=path, line=1)
@@ -115,7 +102,7 @@ def _parse(buf: np.ndarray, size: int, *, path: Path | None) -> Motion:
         header = _Header(bytes(text), path)
         header.parse()
     try:
-        channels = _read_frames(buf, _PAD + header.data_start, size - header.data_start, header, path)
+        channels = _read_frames(text, header.data_start, size - header.data_start, header, path)
     except _CarriageReturns:
         return _parse_normalised(text, path)
     return Motion(
@@ -429,7 +416,7 @@ def _read_frames_fast(buf: np.ndarray, base: int, length: int, n_frames: int, n_
         if (counts != n_channels).any() or filled + k > values.size:
             return None
         if k:
-            part, slow = bvh_numbers.parse_tokens(buf, base + lo, starts, ends)
+            part, slow = _parse_tokens(buf, base + lo, starts, ends)
             if slow.any():
                 return None
             values[filled : filled + k] = part
@@ -469,7 +456,7 @@ def _read_frames_checked(buf: np.ndarray, base: int, length: int, header: _Heade
         problem = extra if problem is None or extra[0] < problem[0] else problem
 
     if starts.size:
-        values, slow = bvh_numbers.parse_tokens(buf, base, starts, ends)
+        values, slow = _parse_tokens(buf, base, starts, ends)
     else:
         values, slow = np.zeros(0), np.zeros(0, dtype=bool)
     bad_value = _read_slow_tokens(b, starts, ends, values, slow)
@@ -491,6 +478,16 @@ def _read_frames_checked(buf: np.ndarray, base: int, length: int, header: _Heade
             line=first_line + n_lines,
         )
     return values.reshape(n_frames, n_channels)
+
+
+def _parse_tokens(text: np.ndarray, base: int, starts: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`bvh_numbers.parse_tokens` on ``text[base:]``, through a padded copy when the tokens run to the end."""
+    stop = base + int(ends[-1])
+    if base >= 8 and stop + bvh_numbers.PAD <= text.size:
+        return bvh_numbers.parse_tokens(text, base, starts, ends)
+    padded = np.full(stop - base + 8 + bvh_numbers.PAD, 32, dtype=np.uint8)
+    padded[8 : 8 + stop - base] = text[base:stop]
+    return bvh_numbers.parse_tokens(padded, 8, starts, ends)
 
 
 def _read_slow_tokens(block, starts, ends, values, slow) -> tuple[int, str] | None:

@@ -130,8 +130,21 @@ def test_load_bvh_reads_a_file(tmp_path):
     path.write_text(bvh_text(small(), FRAMES))
     m = load_bvh(path)
     assert m.path == path and m.n_frames == 2
+    np.testing.assert_array_equal(m.channels, FRAMES)
     with pytest.raises(FileNotFoundError):
         load_bvh(tmp_path / "missing.bvh")
+    with pytest.raises(IsADirectoryError):
+        load_bvh(tmp_path)
+
+
+def test_load_bvh_edge_files(tmp_path):
+    empty = tmp_path / "empty.bvh"  # cannot be memory-mapped: read instead
+    empty.write_bytes(b"")
+    with pytest.raises(BvhError, match=r"empty\.bvh:1: Expected a BVH file starting with HIERARCHY"):
+        load_bvh(empty)
+    bom = tmp_path / "bom.bvh"
+    bom.write_bytes(b"\xef\xbb\xbf" + bvh_text(small(), FRAMES).encode().rstrip(b"\n"))  # and no final newline
+    np.testing.assert_array_equal(load_bvh(bom).channels, FRAMES)
 
 
 # ------------------------------------------------------------------------------- bulk number reader
