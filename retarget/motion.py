@@ -12,8 +12,16 @@ its rotation channels composed in listed order as intrinsic rotations
     R_world[j] = R_world[parent] @ R_local[j]
     p_world[j] = p_world[parent] + R_world[parent] @ t_local[j]
 
-Results are computed once, vectorised over frames (a loop over joints only),
-cached, and returned read-only.
+FK (:mod:`retarget.bvh_fk`) runs over all frames at once, one depth level of
+the skeleton per step; results are computed on first use, cached, and
+returned read-only.
+
+Example::
+
+    motion = load_bvh("clip.bvh")
+    motion.positions()            # (n_frames, n_joints, 3)
+    arm = motion.arm_points("right")
+    arm.points[:, 2]              # (n_frames, 3) wrist, file units
 """
 
 from __future__ import annotations
