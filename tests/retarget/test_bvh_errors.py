@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import random
 import re
 
+import numpy as np
 import pytest
 
 from retarget.bvh import load_bvh, parse_bvh
@@ -184,3 +186,36 @@ def test_every_truncation_is_an_error_never_partial_data():
     for cut in range(len(GOOD) - 2):  # GOOD[:-1] only lacks the final newline, which is fine
         with pytest.raises(BvhError):
             parse_bvh(GOOD[:cut])
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_mutated_files_give_motion_or_bvh_error_only(seed):
+    rng = random.Random(seed)
+    alphabet = "0123456789.-+eE \t\n\r{}:abcHIERARCHYMOTIONJOINTEndSite\x00\xe9"
+    for _ in range(150):
+        text = GOOD
+        for _ in range(rng.randint(1, 4)):
+            i = rng.randrange(len(text))
+            kind = rng.randrange(5)
+            if kind == 0:
+                text = text[:i] + text[i + 1 :]
+            elif kind == 1:
+                text = text[:i] + rng.choice(alphabet) + text[i:]
+            elif kind == 2:
+                lines = text.split("\n")
+                k = rng.randrange(len(lines))
+                lines.insert(k, lines[rng.randrange(len(lines))])
+                text = "\n".join(lines)
+            elif kind == 3:
+                lines = text.split("\n")
+                del lines[rng.randrange(len(lines))]
+                text = "\n".join(lines)
+            else:
+                text = text[:i] + text[i:].replace(" ", "\t", 1)
+        try:
+            motion = parse_bvh(text)
+        except BvhError as exc:
+            assert exc.line is None or 1 <= exc.line <= text.count("\n") + 2, (exc, text)
+            continue
+        assert motion.channels.shape == (motion.n_frames, sum(len(c.names) for c in motion.layout))
+        assert np.isfinite(motion.positions()).all()
