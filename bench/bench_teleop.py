@@ -24,7 +24,7 @@ import retarget
 from retarget.clock import VirtualClock
 from retarget.control import LoopConfig, TickRecord
 from retarget.teleop import Follower, run_teleop
-from retarget.teleop_input import TargetBounds, TargetGate, _Source
+from retarget.teleop_input import Source, TargetBounds, TargetGate
 
 
 def check(ok: bool) -> str:
@@ -73,8 +73,8 @@ def session(repeat: int) -> tuple[list[list[float]], list[list[float]], int]:
     for _ in range(repeat + 1):
         clock = VirtualClock()
         gate = TargetGate(TargetBounds.for_arm(arm), clock=clock)
-        source = _Source(gate)  # open: the run holds after reaching the target until max_ticks
-        source._feed("0.3 0.1 0.25")
+        source = Source(gate)  # open: the run holds after reaching the target until max_ticks
+        source.feed("0.3 0.1 0.25")
         follower = Follower(arm, source, clock=clock, rate=100.0)
         records: list[TickRecord] = []
         result = run_teleop(arm, follower, config=LoopConfig(max_ticks=600), clock=clock, on_tick=records.append)

@@ -44,7 +44,7 @@ if TYPE_CHECKING:
     from retarget.control import LoopConfig, TickRecord, TickStats
     from retarget.ik import CCDSolver, IKResult
     from retarget.summary import RunSummary
-    from retarget.teleop_input import Target, _Source
+    from retarget.teleop_input import Source, Target
 
 __all__ = ["Follower", "Phase", "PoseSolver", "TeleopResult", "Visit", "run_teleop", "tool_point"]
 
@@ -53,6 +53,8 @@ log = logging.getLogger(__name__)
 DEFAULT_MAX_SPEED = 0.2  #: m/s, Cartesian speed limit of the tool point's setpoint
 DEFAULT_TOLERANCE = 0.005  #: m, a one-shot target counts as reached within this (by FK of the present positions)
 DEFAULT_PASS_RADIUS = 0.005  #: m, an intermediate stream point counts as passed within this
+DEFAULT_ORIENTATION_TOLERANCE = math.radians(2.0)  #: rad, a target orientation counts as reached within this
+ORIENTATION_SCALE = 0.1  #: m per rad: how orientation error counts against distance when judging progress
 
 
 class Phase(enum.Enum):
@@ -73,12 +75,20 @@ class Visit:
     reached: bool
     residual: float  #: metres, commanded tool point to target when it was left
     tick: int  #: the tick it was left at
+    rotation: np.ndarray | None = None  #: ``(3, 3)`` the target orientation, if it had one
+    orientation_error: float = math.nan  #: radians, commanded tool frame to ``rotation`` when it was left
 
 
 def tool_point(arm: Arm, q: np.ndarray) -> np.ndarray:
     """The tool point ``(3,)`` metres, base frame, of joint angles ``q`` ``(n_joints,)`` radians."""
     T, _ = arm.fk(q)
     return np.array(T[:3, 3], dtype=np.float64)
+
+
+def rotation_angle(R: np.ndarray, target: np.ndarray) -> float:
+    """The angle, radians in ``[0, pi]``, of the rotation from ``R`` to ``target`` (both ``(3, 3)``)."""
+    c = (float(np.trace(R.T @ target)) - 1.0) / 2.0
+    return math.acos(min(1.0, max(-1.0, c)))
 
 
 def _positive(value: float, key: str, *, inf: bool = False) -> float:
@@ -93,15 +103,16 @@ class Follower:
 
     Keyword-only knobs (metres, seconds): ``rate`` (ticks per second of the loop), ``max_speed``
     (``inf``: no Cartesian limit), ``tolerance``, ``pass_radius``, ``timeout`` (None: never stale),
-    ``stall_time``.  ``lockstep``: for a virtual clock (``--fast``), wait up to ``idle_wait`` *real*
-    seconds for input whenever there is nothing to do, so virtual time does not race ahead of a
-    reader thread.  Call :meth:`start` with the start pose before the first tick.
+    ``stall_time``; ``orientation_tolerance`` (radians) for targets with a rotation, which count as
+    reached only when the tool frame is within it too.  ``lockstep``: for a virtual clock (``--fast``),
+    wait up to ``idle_wait`` *real* seconds for input whenever there is nothing to do, so virtual time
+    does not race ahead of a reader thread.  Call :meth:`start` with the start pose before the first tick.
     """
 
     def __init__(
         self,
         arm: Arm,
-        source: _Source,
+        source: Source,
         *,
         clock: Clock,
         rate: float,
@@ -111,6 +122,7 @@ class Follower:
         timeout: float | None = None,
         stall_time: float = 0.25,
         stall_distance: float = 1e-4,
+        orientation_tolerance: float = DEFAULT_ORIENTATION_TOLERANCE,
         lockstep: bool = False,
         idle_wait: float = 0.1,
         queue_length: int = 4096,
@@ -125,6 +137,8 @@ class Follower:
         self.timeout = None if timeout is None else _positive(timeout, "--timeout")
         self.stall_ticks = max(3, int(round(_positive(stall_time, "stall_time") * self.rate)))
         self.stall_distance = float(stall_distance)
+        self.orientation_tolerance = _positive(orientation_tolerance, "orientation_tolerance")
+        self.tool_rotation: np.ndarray | None = None  #: ``(3, 3)`` the commanded tool frame after the last tick
         self.lockstep = lockstep
         self.idle_wait = float(idle_wait)
         self._step = self.max_speed / self.rate  # metres per tick
@@ -144,7 +158,8 @@ class Follower:
 
     def start(self, q_start: np.ndarray) -> None:
         """Begin at joint angles ``q_start`` ``(n_joints,)`` radians: the setpoint starts at their tool point."""
-        self.tool = tool_point(self.arm, q_start)
+        T, _ = self.arm.fk(q_start)
+        self.tool, self.tool_rotation = T[:3, 3].copy(), T[:3, :3].copy()
         self.setpoint = self.tool.copy()
 
     @property
@@ -153,6 +168,13 @@ class Follower:
         if self.goal is not None:
             return self.goal.position
         return self.visits[-1].target if self.visits else None
+
+    @property
+    def last_rotation(self) -> np.ndarray | None:
+        """``(3, 3)`` the orientation of :attr:`last_target`, if it has one."""
+        if self.goal is not None:
+            return self.goal.rotation
+        return self.visits[-1].rotation if self.visits else None
 
     @property
     def pending(self) -> int:
@@ -209,18 +231,21 @@ class Follower:
 
     def observe(self, tick: int, q_cmd: np.ndarray, q_present: np.ndarray | None = None) -> None:
         """After tick ``tick``: the commanded joint angles ``q_cmd`` ``(n_joints,)`` radians."""
-        self.tool = tool_point(self.arm, q_cmd)
+        T, _ = self.arm.fk(q_cmd)
+        self.tool, self.tool_rotation = T[:3, 3].copy(), T[:3, :3].copy()
         goal = self.goal
         if goal is None or not np.array_equal(self.setpoint, goal.position):
             return  # holding, or the setpoint is still on its way
         d = float(np.linalg.norm(self.tool - goal.position))
+        angle = 0.0 if goal.rotation is None else rotation_angle(self.tool_rotation, goal.rotation)
         radius = self.pass_radius if self._queue else self.tolerance
-        if d <= radius:
+        cost = d + ORIENTATION_SCALE * angle
+        if d <= radius and angle <= self.orientation_tolerance:
             self._leave(True, tick, d)
-        elif d < self._best - self.stall_distance:
-            self._best, self._best_tick = d, tick
+        elif cost < self._best - self.stall_distance:
+            self._best, self._best_tick = cost, tick
         elif tick - self._best_tick >= self.stall_ticks:
-            log.info("target %d unreachable: holding %.1f mm from it", goal.seq, d * 1e3)
+            log.info("target %d unreachable: holding %.1f mm, %.1f deg from it", goal.seq, d * 1e3, math.degrees(angle))
             self._leave(False, tick, d)
 
     def cancel(self) -> None:
@@ -237,7 +262,8 @@ class Follower:
         assert goal is not None
         if residual is None:
             residual = float(np.linalg.norm(self.tool - goal.position))
-        self.visits.append(Visit(goal.seq, goal.position, reached, residual, tick))
+        angle = math.nan if goal.rotation is None else rotation_angle(self.tool_rotation, goal.rotation)
+        self.visits.append(Visit(goal.seq, goal.position, reached, residual, tick, goal.rotation, angle))
         self.goal = None
         self.setpoint = self.tool.copy()
         self.phase = Phase.HOLDING
@@ -267,11 +293,17 @@ class TeleopResult:
     rejects: dict[str, int]  #: rejected messages by reason
     stale_events: int
     q_final: np.ndarray  #: ``(n_joints,)`` rad, the final present positions (goals in a dry run)
+    #: radians, the final tool frame to the last target's orientation (nan when it had none)
+    orientation_error: float = math.nan
+    orientation_tolerance: float = DEFAULT_ORIENTATION_TOLERANCE
 
     @property
     def reached_target(self) -> bool:
-        """True when the last target was reached within ``tolerance`` (False when none came)."""
-        return self.residual is not None and self.residual <= self.tolerance
+        """True when the last target was reached within ``tolerance`` (and ``orientation_tolerance`` when it
+        had an orientation); False when none came."""
+        if self.residual is None or self.residual > self.tolerance:
+            return False
+        return math.isnan(self.orientation_error) or self.orientation_error <= self.orientation_tolerance
 
     def to_dict(self) -> dict[str, object]:
         """JSON-ready: lengths in metres (``_m``) or millimetres (``_mm``), angles in degrees (``_deg``)."""
@@ -284,6 +316,9 @@ class TeleopResult:
             "reached_m": vec(self.reached),
             "residual_mm": None if self.residual is None else round(self.residual * 1e3, 3),
             "tolerance_mm": round(self.tolerance * 1e3, 3),
+            "orientation_error_deg": None
+            if math.isnan(self.orientation_error)
+            else round(math.degrees(self.orientation_error), 3),
             "reached": self.reached_target,
             "joints_deg": [round(float(np.degrees(q)), 3) for q in self.q_final],
             "targets_received": self.received,
@@ -399,7 +434,10 @@ def run_teleop(
         stop=stop,
     )
     q_final = stats.q_present if stats.q_present is not None else stats.q_cmd
-    reached = tool_point(arm, q_final)
+    T, _ = arm.fk(q_final)
+    reached = np.array(T[:3, 3], dtype=np.float64)
+    rotation = follower.last_rotation
+    orientation_error = math.nan if rotation is None else rotation_angle(T[:3, :3], rotation)
     target = follower.last_target
     residual = None if target is None else float(np.linalg.norm(reached - target))
     summary = stats.summary(arm=arm.name, clip=name, frames=follower.received, duration_s=stats.run_time)
@@ -415,4 +453,6 @@ def run_teleop(
         rejects=follower.source.rejects,
         stale_events=follower.stale_events,
         q_final=np.array(q_final, dtype=np.float64),
+        orientation_error=orientation_error,
+        orientation_tolerance=follower.orientation_tolerance,
     )

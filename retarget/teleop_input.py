@@ -51,6 +51,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "BasePose",
+    "Source",
     "MAX_MESSAGE_BYTES",
     "Message",
     "OneShotSource",
@@ -378,10 +379,12 @@ class TargetGate:
 # --------------------------------------------------------------------------------------------------- sources
 
 
-class _Source:
-    """Common state of a target source: the latest target, the queue of accepted ones, closed, a condition.
+class Source:
+    """A target source: the latest target, the queue of accepted ones, closed, a condition.
 
-    ``latest()``/``drain()``/``wait()`` may be called from the control loop while a reader thread adds.
+    The base of the stdin, UDP, one-shot and key sources; usable on its own as a source an
+    application (or a test) feeds with :meth:`feed`.  ``latest()``/``drain()``/``wait()`` may be
+    called from the control loop while another thread feeds.
     """
 
     name = "source"
@@ -405,7 +408,8 @@ class _Source:
             self._latest = target
             self._cond.notify_all()
 
-    def _feed(self, data: str | bytes) -> None:
+    def feed(self, data: str | bytes) -> None:
+        """Pass one raw message through the gate; queue it when accepted (a reject is counted)."""
         target = self.gate.accept(data, source=self.name)
         if target is not None:
             self._push(target)
@@ -470,7 +474,7 @@ class _Source:
         return self
 
 
-class OneShotSource(_Source):
+class OneShotSource(Source):
     """A single target (``--to``), already accepted; closed from the start."""
 
     name = "--to"
@@ -494,7 +498,7 @@ class OneShotSource(_Source):
         self._finish()
 
 
-class _ThreadSource(_Source):
+class _ThreadSource(Source):
     def __init__(self, gate: TargetGate, **kwargs: object):
         super().__init__(gate, **kwargs)  # type: ignore[arg-type]
         self._thread: threading.Thread | None = None
@@ -556,7 +560,7 @@ class StdinSource(_ThreadSource):
                 continue
             if self._stop.is_set():
                 return
-            self._feed(line.rstrip(nl).rstrip("\r" if isinstance(line, str) else b"\r"))
+            self.feed(line.rstrip(nl).rstrip("\r" if isinstance(line, str) else b"\r"))
 
     def close(self) -> None:
         self._stop.set()
@@ -639,7 +643,7 @@ class UdpSource(_ThreadSource):
             if len(data) > limit:
                 self.gate.reject(Reject.OVERSIZE, f"Expected a datagram of at most {limit} bytes", source=self.name)
                 continue
-            self._feed(data)
+            self.feed(data)
 
     def close(self) -> None:
         self._stop.set()

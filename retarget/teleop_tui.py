@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from retarget.teleop_input import Target, TargetBounds, TargetRejected, _Source
+from retarget.teleop_input import Source, Target, TargetBounds, TargetRejected
 
 if TYPE_CHECKING:
     from retarget.arm import Arm
@@ -102,7 +102,7 @@ class Jog:
         return Action.MOVE
 
 
-class KeySource(_Source):
+class KeySource(Source):
     """A target source fed by a :class:`Jog`: holds only the newest target (a queue of one)."""
 
     name = "keys"

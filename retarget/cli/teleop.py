@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import threading
 from typing import TYPE_CHECKING, Any
@@ -27,7 +28,7 @@ if TYPE_CHECKING:
     from retarget.arm import Arm
     from retarget.control import TickRecord
     from retarget.teleop import Follower, TeleopResult
-    from retarget.teleop_input import TargetGate, _Source
+    from retarget.teleop_input import Source, TargetGate
 
 DEFAULT_ARM = "wx250s"
 DEFAULT_UDP_TIMEOUT = 1.0  #: s, the dead-man timeout of --udp unless --timeout says otherwise
@@ -140,7 +141,7 @@ def _gate(args: argparse.Namespace, arm: Arm, clock: Any, opts: dict[str, Any]) 
     return TargetGate(bounds, clock=clock, frame_pose=pose, max_bytes=opts["max_bytes"])
 
 
-def _source(args: argparse.Namespace, gate: TargetGate) -> _Source:
+def _source(args: argparse.Namespace, gate: TargetGate) -> Source:
     from retarget.teleop_input import OneShotSource, StdinSource, UdpSource, parse_address
 
     if args.to is not None:
@@ -259,9 +260,11 @@ def _report(args: argparse.Namespace, result: TeleopResult) -> None:
         return
     r, t = result.reached, result.target
     verdict = "reached" if result.reached_target else "NOT reached (nearest point)"
+    error = result.orientation_error
+    angle = "" if math.isnan(error) else f"  orientation {math.degrees(error):.2f} deg"
     print(
         f"target {t[0]:.4f} {t[1]:.4f} {t[2]:.4f} m  reached {r[0]:.4f} {r[1]:.4f} {r[2]:.4f} m  "
-        f"residual {result.residual * 1e3:.2f} mm  {verdict} (tolerance {result.tolerance * 1e3:g} mm)"
+        f"residual {result.residual * 1e3:.2f} mm{angle}  {verdict} (tolerance {result.tolerance * 1e3:g} mm)"
     )
 
 

@@ -16,7 +16,7 @@ from retarget.clock import VirtualClock
 from retarget.control import LoopConfig, TickRecord
 from retarget.errors import ConfigError
 from retarget.teleop import Follower, Phase, run_teleop, tool_point
-from retarget.teleop_input import OneShotSource, StdinSource, TargetBounds, TargetGate, UdpSource, _Source
+from retarget.teleop_input import OneShotSource, Source, StdinSource, TargetBounds, TargetGate, UdpSource
 
 from .test_teleop_input import garbage
 
@@ -240,13 +240,13 @@ def test_stale_stream_holds_position(arm, session):
 
     def make(gate):
         gate_holder["gate"] = gate
-        return _Source(gate)  # fed by the test, never closed
+        return Source(gate)  # fed by the test, never closed
 
     def feed(r: TickRecord, source):
         if r.tick == 0:
-            source._feed("0.45 0.1 0.25")  # far: still on the way when the stream goes quiet
+            source.feed("0.45 0.1 0.25")  # far: still on the way when the stream goes quiet
         if r.tick == 150:
-            source._feed("0.3 0 0.2")
+            source.feed("0.3 0 0.2")
 
     result, records, _, _, follower = session(make, max_ticks=400, on_tick=feed, timeout=0.5)
     by_tick = {r.tick: r for r in records}
@@ -276,7 +276,7 @@ def test_stale_stream_holds_position(arm, session):
 )
 def test_follower_option_errors(arm, kwargs, match):
     clock = VirtualClock()
-    source = _Source(TargetGate(TargetBounds.for_arm(arm), clock=clock))
+    source = Source(TargetGate(TargetBounds.for_arm(arm), clock=clock))
     args = {"rate": 100.0, **kwargs}
     with pytest.raises(ConfigError, match=match):
         Follower(arm, source, clock=clock, **args)
@@ -284,7 +284,7 @@ def test_follower_option_errors(arm, kwargs, match):
 
 def test_follower_needs_start(arm):
     clock = VirtualClock()
-    f = Follower(arm, _Source(TargetGate(TargetBounds.for_arm(arm), clock=clock)), clock=clock, rate=100)
+    f = Follower(arm, Source(TargetGate(TargetBounds.for_arm(arm), clock=clock)), clock=clock, rate=100)
     with pytest.raises(RuntimeError, match="start"):
         f.target_at(0, 0.0)
 
