@@ -1,13 +1,13 @@
-"""``retarget teleop``: move the arm's tool point to where you say: one point, a stream (stdin, UDP), or keys.
+"""'retarget teleop': move the arm's tool point to where you say: one point, a stream (stdin, UDP), or keys.
 
 Targets are metres in the arm's base frame (x forward, y left, z up), or in the world frame with
-``--frame world`` (the base sits at ``--base-pose`` in it; arm files carry no world pose, so by default
+'--frame world' (the base sits at '--base-pose' in it; arm files carry no world pose, so by default
 world = base).  Every target goes through the same gate (size limit, parse, finite, inside the box and
 within reach + margin); rejected ones are counted and never move the arm.  The tool point's setpoint
-moves at most ``--max-speed`` m/s and each joint at most its max velocity; the same control loop,
-bus options, telemetry, summary and Ctrl-C shutdown as ``retarget replay``.
+moves at most '--max-speed' m/s and each joint at most its max velocity; the same control loop,
+bus options, telemetry, summary and Ctrl-C shutdown as 'retarget replay'.
 
-Exit status: 0 when the last target was reached within ``--tolerance`` (checked by FK of the positions
+Exit status: 0 when the last target was reached within '--tolerance' (checked by FK of the positions
 read back from the servos), 3 when it was not (the arm stays at the nearest point it reached), 2 for bad
 input, 4 for a bus failure, 130 after Ctrl-C.
 """
@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from retarget.arm import Arm
     from retarget.control import TickRecord
     from retarget.teleop import Follower, TeleopResult
-    from retarget.teleop_input import Source, TargetGate
+    from retarget.teleop_input import BasePose, Source, TargetGate
 
 DEFAULT_ARM = "wx250s"
 DEFAULT_UDP_TIMEOUT = 1.0  #: s, the dead-man timeout of --udp unless --timeout says otherwise
@@ -238,7 +238,7 @@ def run(args: argparse.Namespace) -> int:
         if telemetry is not None:
             telemetry.close()
         setup.release()
-    _report(args, result)
+    _report(args, result, gate.frame_pose)
     if result.summary.interrupted:
         return EXIT_INTERRUPTED
     if result.target is not None and not result.reached_target and not args.interactive:
@@ -246,24 +246,32 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _report(args: argparse.Namespace, result: TeleopResult) -> None:
+def _report(args: argparse.Namespace, result: TeleopResult, pose: BasePose | None) -> None:
+    """The summary on stderr; the result on stdout (JSON, or a line in the frame the targets were given in)."""
     s = result.summary
     head = f"teleop{' (interrupted)' if s.interrupted else ''}: {s.clip} on {s.arm}: {s.ticks} ticks at "
     head += f"{s.rate_hz:g} Hz, {s.run_time_s:.2f} s in {s.wall_time_s:.3f} s ({s.real_time_factor:.1f}x real time)"
     print("\n".join([head, *s.format().split("\n")[1:], result.format()]), file=sys.stderr)
     if args.json:
-        json.dump({**s.to_dict(), "teleop": result.to_dict()}, sys.stdout, indent=2)
+        doc = result.to_dict()
+        if pose is not None and result.target is not None:
+            doc["target_world_m"] = [round(float(v), 6) for v in pose.to_world(result.target)]
+            doc["reached_world_m"] = [round(float(v), 6) for v in pose.to_world(result.reached)]
+        json.dump({**s.to_dict(), "teleop": doc}, sys.stdout, indent=2)
         sys.stdout.write("\n")
         return
     if result.target is None:
         print("no target received", file=sys.stderr)
         return
     r, t = result.reached, result.target
+    frame = "base"
+    if pose is not None:
+        r, t, frame = pose.to_world(r), pose.to_world(t), "world"
     verdict = "reached" if result.reached_target else "NOT reached (nearest point)"
     error = result.orientation_error
     angle = "" if math.isnan(error) else f"  orientation {math.degrees(error):.2f} deg"
     print(
-        f"target {t[0]:.4f} {t[1]:.4f} {t[2]:.4f} m  reached {r[0]:.4f} {r[1]:.4f} {r[2]:.4f} m  "
+        f"target {t[0]:.4f} {t[1]:.4f} {t[2]:.4f} m  reached {r[0]:.4f} {r[1]:.4f} {r[2]:.4f} m ({frame} frame)  "
         f"residual {result.residual * 1e3:.2f} mm{angle}  {verdict} (tolerance {result.tolerance * 1e3:g} mm)"
     )
 

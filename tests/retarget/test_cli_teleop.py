@@ -55,7 +55,8 @@ def test_one_shot_reached_exit_0(arm, registered, capsys):
     assert code == 0, err
     reached = wx250s_tool(servo_joint_angles(simbus, arm))  # read from the servos' registers after the run
     assert np.linalg.norm(reached - [0.3, 0.05, 0.2]) < 3e-3
-    assert out.startswith("target 0.3000 0.0500 0.2000 m  reached ") and " reached (tolerance 5 mm)" in out
+    assert out.startswith("target 0.3000 0.0500 0.2000 m  reached ") and "(base frame)" in out
+    assert out.rstrip().endswith(" reached (tolerance 5 mm)")
     assert "teleop: --to 0.3,0.05,0.2 on wx250s" in err and "1 received, 1 reached" in err
     assert all(simbus.servo(i).get("Torque Enable") == 1 for i in (1, 2, 4, 6, 7, 8))  # default shutdown: hold
 
@@ -84,6 +85,7 @@ def test_rpy_and_world_frame(arm, registered, capsys):
     )
     assert code == 0, err
     np.testing.assert_allclose(wx250s_tool(servo_joint_angles(simbus, arm)), [0.3, 0, 0.2], atol=3e-3)
+    assert out.startswith("target 1.0000 2.3000 0.2000 m  reached ") and "(world frame)" in out
     code, out, err = teleop(capsys, "--to", "0.3,0,0.15", "--rpy", "0,90,0", "--port", url, "--fast", "--json")
     assert code == 0, err
     q = servo_joint_angles(simbus, arm)
