@@ -38,6 +38,7 @@ examples:
   retarget teleop --to 0.3,0,0.2                    move the tool point there (simulated wx250s), report, exit 0/3
   retarget teleop --to 0.3,0,0.2 --rpy 0,90,0 --fast   with the tool pointing down, on a virtual clock
   retarget teleop --to 1,2,0.2 --frame world --base-pose 0.7,2,0,0,0,90
+  retarget teleop --arm koch --to=-0.16,0,0.18 --fast   a negative first value needs '='
   printf '0.3 0 0.2\\n0.3 0.1 0.25\\n' | retarget teleop --stdin --fast --json
   retarget teleop --udp 9000 --timeout 0.5 --port /dev/ttyUSB0     datagrams on 127.0.0.1:9000
   retarget teleop --interactive --port /dev/ttyUSB0 --max-speed 0.05
@@ -54,7 +55,11 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     mode = parser.add_argument_group("where the targets come from (one of)").add_mutually_exclusive_group(required=True)
-    mode.add_argument("--to", metavar="X,Y,Z", help="one target, metres; exit 0 when reached, 3 when unreachable")
+    mode.add_argument(
+        "--to",
+        metavar="X,Y,Z",
+        help="one target, metres; exit 0 when reached, 3 when unreachable (a negative X: --to=-0.2,0,0.1)",
+    )
     mode.add_argument("--stdin", action="store_true", help='targets as lines: \'x y z\' or JSON {"x":..,"y":..,"z":..}')
     mode.add_argument("--udp", metavar="[HOST:]PORT", help="targets as datagrams; binds 127.0.0.1 unless HOST is given")
     mode.add_argument("--interactive", action="store_true", help="keys nudge the target (needs a terminal)")
