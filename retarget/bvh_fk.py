@@ -1,10 +1,11 @@
 """Forward kinematics of a BVH skeleton over all frames at once.
 
 The work is laid out for numpy: joints are visited level by level (all
-joints at one depth together, as a contiguous slice in breadth-first order)
-and 3x3 rotations are stored entry-major, ``(3, 3, n_joints, n_frames)``, so
-each step is a few dozen elementwise operations on long contiguous rows
-instead of tens of thousands of tiny 3x3 matmuls.
+joints at one depth together) and 3x3 rotations are stored entry-major,
+``(3, 3, k, n_frames)``, so each level is one elementwise composition of its
+local rotations and one ``einsum`` with its parents' rotations, on long
+contiguous rows, instead of tens of thousands of tiny 3x3 matmuls.  Only the
+previous level's world rotations are kept, all of them only when asked for.
 
 Convention (see :mod:`retarget.motion`): ``R_world[j] = R_world[parent] @
 R_local[j]``, ``p_world[j] = p_world[parent] + R_world[parent] @ t_local[j]``,
@@ -54,11 +55,9 @@ def forward_kinematics(
     ``(J, 3)``; per joint its canonical channel names and first column in
     ``channels`` ``(n_frames, n_channels)`` (degrees, file units).
 
-    Only one depth level of world rotations is kept at a time (as nine
-    ``(k, n_frames)`` rows), unless ``rotations`` asks for all of them; and
-    only for joints that need one: those with child joints, with End Sites
-    (when ``end_sites``), or all (when ``rotations``).  Without
-    ``end_sites``, ``Pose.end_sites`` is None.
+    World rotations are computed only for joints that need one: those with
+    child joints, with End Sites (when ``end_sites``), or all (when
+    ``rotations``).  Without ``end_sites``, ``Pose.end_sites`` is None.
     """
     parents = np.asarray(parents, dtype=np.intp)
     nj, n = len(parents), channels.shape[0]
@@ -73,72 +72,36 @@ def forward_kinematics(
     needs_rotation[parents[parents >= 0]] = True
     needs_rotation[site_parents] = True
     slot = np.zeros(nj, dtype=np.intp)  # a joint's row in its level's rotation rows
-    prev_rot: list[list[np.ndarray]] = []
-    prev_pos: list[np.ndarray] = []
+    prev_rot = prev_pos = np.zeros(0)
     for a, b in level_bounds:
         joints = order[a:b]
-        k = b - a
         turning = joints[needs_rotation[joints]]
         slot[turning] = np.arange(turning.size)
         trans = _translations(joints, offsets, channel_names, first_columns, columns)  # (3, k, 1 or n)
-        local = _local_rotations(turning, channel_names, first_columns, columns) if turning.size else None
+        local = _local_rotations(turning, channel_names, first_columns, columns)  # (3, 3, k', n)
         if parents[joints[0]] < 0:  # the roots, alone in the first level
-            pos = [np.broadcast_to(trans[i], (k, n)).copy() for i in range(3)]
-            world = [[_rows(local[i][c], turning.size, n) for c in range(3)] for i in range(3)] if local else []
+            pos = np.broadcast_to(trans, (3, b - a, n))
+            world = local
         else:
-            prot, ppos = _parent_rows(prev_rot, prev_pos, slot[parents[joints]])
-            pos = [_rows(_dot3(prot[i], [trans[0], trans[1], trans[2]]) + ppos[i], k, n) for i in range(3)]
-            world = []
-            if local:
-                if turning.size < k:
-                    prot, _ = _parent_rows(prev_rot, prev_pos, slot[parents[turning]])
-                world = [
-                    [_rows(_dot3(prot[i], [local[0][c], local[1][c], local[2][c]]), turning.size, n) for c in range(3)]
-                    for i in range(3)
-                ]
+            rows = slot[parents[joints]]
+            single = bool(np.all(rows == rows[0]))
+            pick = slice(int(rows[0]), int(rows[0]) + 1) if single else rows
+            # p = p_parent + R_parent @ t;  R = R_parent @ R_local  (3x3 over the leading axes, rows broadcast)
+            pos = np.einsum("ij...,j...->i...", prev_rot[:, :, pick], trans) + prev_pos[:, pick]
+            if turning.size < joints.size and not single:
+                pick = slot[parents[turning]]
+            world = np.einsum("ij...,jl...->il...", prev_rot[:, :, pick], local)
         for i in range(3):
             positions[:, joints, i] = pos[i].T
             if all_rot is not None:
                 for c in range(3):
-                    all_rot[:, joints, i, c] = world[i][c].T
+                    all_rot[:, joints, i, c] = world[i, c].T
         if sites is not None:
             for e in np.flatnonzero(np.isin(site_parents, joints)):
-                r, p, off = slot[site_parents[e]], pos, site_offsets[e]
-                row = int(np.flatnonzero(joints == site_parents[e])[0])
-                for i in range(3):
-                    sites[:, e, i] = (
-                        p[i][row] + world[i][0][r] * off[0] + world[i][1][r] * off[1] + world[i][2][r] * off[2]
-                    )
-        prev_rot, prev_pos = world, [pos[i][needs_rotation[joints]] for i in range(3)]
+                r, row = slot[site_parents[e]], int(np.flatnonzero(joints == site_parents[e])[0])
+                sites[:, e, :] = (pos[:, row] + np.einsum("ijn,j->in", world[:, :, r], site_offsets[e])).T
+        prev_rot, prev_pos = world, pos[:, needs_rotation[joints]]
     return Pose(positions=positions, end_sites=sites, rotations=all_rot)
-
-
-def _parent_rows(prev_rot: list, prev_pos: list, rows: np.ndarray) -> tuple[list, list]:
-    """The parents' rotation and position rows (a broadcastable single row when all share one parent)."""
-    pick = slice(int(rows[0]), int(rows[0]) + 1) if np.all(rows == rows[0]) else rows
-    return [[prev_rot[i][c][pick] for c in range(3)] for i in range(3)], [prev_pos[i][pick] for i in range(3)]
-
-
-def _dot3(row: list, col: list) -> np.ndarray:
-    """``row[0]*col[0] + row[1]*col[1] + row[2]*col[2]`` with ``None`` as 0 and ``1.0`` as 1 folded away."""
-    total = None
-    for x, y in zip(row, col, strict=True):
-        if x is None or y is None:
-            continue
-        term = y if isinstance(x, float) and x == 1.0 else x if isinstance(y, float) and y == 1.0 else x * y
-        total = term if total is None else total + term
-    return total  # type: ignore[return-value]
-
-
-def _rows(entry, k: int, n: int) -> np.ndarray:
-    """An entry (None, 1.0, or an array broadcastable to ``(k, n)``) as a ``(k, n)`` array."""
-    if entry is None:
-        return np.zeros((k, n))
-    if isinstance(entry, float):
-        return np.full((k, n), entry)
-    if entry.shape != (k, n):
-        return np.broadcast_to(entry, (k, n)).copy()
-    return entry
 
 
 def _breadth_first(parents: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int]]]:
@@ -154,35 +117,29 @@ def _breadth_first(parents: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int
 
 def _local_rotations(
     joints: np.ndarray, channel_names: Sequence[Sequence[str]], first_columns: Sequence[int], columns: np.ndarray
-) -> list[list]:
-    """Local rotations of ``joints`` as a 3x3 nested list of ``(k, n)`` rows (or ``None``/``1.0`` when constant)."""
+) -> np.ndarray:
+    """``(3, 3, k, n)`` local rotations of ``joints``."""
     k, n = len(joints), columns.shape[1]
-    orders = []
-    cols = []
-    for j in joints:
+    out = np.empty((3, 3, k, n))
+    orders: dict[str, list[int]] = {}
+    cols: list[list[int]] = []
+    for r, j in enumerate(joints):
         names = channel_names[j]
         picked = [i for i, name in enumerate(names) if name.endswith("rotation")]
-        orders.append("".join(names[i][0] for i in picked))
+        orders.setdefault("".join(names[i][0] for i in picked), []).append(r)
         cols.append([first_columns[j] + i for i in picked])
-    if len(set(orders)) == 1:
-        return _compose(orders[0], np.array(cols).reshape(k, -1), columns)
-    out = [[np.empty((k, n)) for _ in range(3)] for _ in range(3)]
-    for axes_text in set(orders):
-        rows = [r for r, o in enumerate(orders) if o == axes_text]
-        part = _compose(axes_text, np.array([cols[r] for r in rows]).reshape(len(rows), -1), columns)
+    for axes_text, rows in orders.items():
+        where = slice(None) if len(rows) == k else np.array(rows)
+        if not axes_text:
+            out[:, :, where] = np.eye(3)[:, :, None, None]
+            continue
+        angles = np.radians(columns[np.array([cols[r] for r in rows]).T])  # (m, k, n)
+        entries = compose_entries([AXIS_INDEX[a] for a in axes_text], np.cos(angles), np.sin(angles))
         for i in range(3):
             for c in range(3):
-                e = part[i][c]
-                out[i][c][rows] = 0.0 if e is None else e
+                e = entries[i][c]
+                out[i, c, where] = 0.0 if e is None else e
     return out
-
-
-def _compose(axes_text: str, cols: np.ndarray, columns: np.ndarray) -> list[list]:
-    """Entries of the rotations of channel columns ``cols`` ``(k, m)`` in order ``axes_text``."""
-    if not axes_text:
-        return [[1.0 if i == c else None for c in range(3)] for i in range(3)]
-    angles = np.radians(columns[cols.T])  # (m, k, n)
-    return compose_entries([AXIS_INDEX[a] for a in axes_text], np.cos(angles), np.sin(angles))
 
 
 def _translations(
