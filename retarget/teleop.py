@@ -15,7 +15,9 @@ the interactive keys) into the per-tick target of the control loop (:class:`reta
 - with nothing to steer toward (no target yet, the last one reached or given up, or a stale stream) the
   follower returns ``None``: the loop **holds** the commanded pose and runs no IK at all;
 - **stale**: while the source is open and no target came for ``timeout`` seconds, the queue is dropped
-  and the arm holds until a new target comes.
+  and the arm holds until a new target comes;
+- **superseded**: with ``max_lag``, a target received more than ``max_lag`` seconds before the newest
+  one is skipped (counted), so a live stream faster than the arm cannot build an ever-growing lag.
 
 Every outcome is recorded as a :class:`Visit`.  Frames: everything is the arm's base frame, metres;
 :class:`~retarget.teleop_input.BasePose` turns world-frame input into it at the gate.
@@ -103,10 +105,11 @@ class Follower:
 
     Keyword-only knobs (metres, seconds): ``rate`` (ticks per second of the loop), ``max_speed``
     (``inf``: no Cartesian limit), ``tolerance``, ``pass_radius``, ``timeout`` (None: never stale),
-    ``stall_time``; ``orientation_tolerance`` (radians) for targets with a rotation, which count as
-    reached only when the tool frame is within it too.  ``lockstep``: for a virtual clock (``--fast``),
-    wait up to ``idle_wait`` *real* seconds for input whenever there is nothing to do, so virtual time
-    does not race ahead of a reader thread.  Call :meth:`start` with the start pose before the first tick.
+    ``max_lag`` (None: visit every target), ``stall_time``; ``orientation_tolerance`` (radians) for
+    targets with a rotation, which count as reached only when the tool frame is within it too.
+    ``lockstep``: for a virtual clock (``--fast``), wait up to ``idle_wait`` *real* seconds for input
+    whenever there is nothing to do, so virtual time does not race ahead of a reader thread.  Call
+    :meth:`start` with the start pose before the first tick.
     """
 
     def __init__(
@@ -120,6 +123,7 @@ class Follower:
         tolerance: float = 1.5e-3,
         pass_radius: float = DEFAULT_PASS_RADIUS,
         timeout: float | None = None,
+        max_lag: float | None = None,
         stall_time: float = 0.25,
         stall_distance: float = 1e-4,
         orientation_tolerance: float = DEFAULT_ORIENTATION_TOLERANCE,
@@ -135,6 +139,7 @@ class Follower:
         self.tolerance = _positive(tolerance, "--tolerance")
         self.pass_radius = max(_positive(pass_radius, "pass_radius"), self.tolerance)
         self.timeout = None if timeout is None else _positive(timeout, "--timeout")
+        self.max_lag = None if max_lag is None else _positive(max_lag, "--max-lag")
         self.stall_ticks = max(3, int(round(_positive(stall_time, "stall_time") * self.rate)))
         self.stall_distance = float(stall_distance)
         self.orientation_tolerance = _positive(orientation_tolerance, "orientation_tolerance")
@@ -150,6 +155,7 @@ class Follower:
         self.visits: list[Visit] = []
         self.received = 0  #: targets taken from the source
         self.stale_events = 0  #: times the stream went stale
+        self.skipped = 0  #: targets superseded (older than ``max_lag`` behind the newest) and not visited
         self._best = math.inf
         self._best_tick = 0
         self._last_tick = -1
@@ -189,11 +195,21 @@ class Follower:
 
     def _pull(self) -> None:
         new = self.source.drain()
-        if new:
-            self._queue.extend(new)
-            self.received += len(new)
-            if self.phase is Phase.STALE:
-                log.info("target stream resumed")
+        if not new:
+            return
+        self._queue.extend(new)
+        self.received += len(new)
+        if self.phase is Phase.STALE:
+            log.info("target stream resumed")
+        if self.max_lag is not None:
+            newest = self._queue[-1].received
+            while len(self._queue) > 1 and newest - self._queue[0].received > self.max_lag:
+                self._queue.popleft()
+                self.skipped += 1
+            if self.goal is not None and newest - self.goal.received > self.max_lag:
+                self.goal = None  # superseded: steer on from where the arm is to the next one
+                self.setpoint = self.tool.copy()
+                self.skipped += 1
 
     def target_at(self, tick: int, t: float) -> tuple[np.ndarray, np.ndarray | None, bool] | None:
         """The target of tick ``tick``: ``(position (3,), rotation (3, 3) | None, clamped)``, or None to hold."""
@@ -292,6 +308,7 @@ class TeleopResult:
     received: int  #: targets accepted
     rejects: dict[str, int]  #: rejected messages by reason
     stale_events: int
+    skipped: int  #: targets superseded by newer ones (``max_lag``) and not visited
     q_final: np.ndarray  #: ``(n_joints,)`` rad, the final present positions (goals in a dry run)
     #: radians, the final tool frame to the last target's orientation (nan when it had none)
     orientation_error: float = math.nan
@@ -325,6 +342,7 @@ class TeleopResult:
             "targets_reached": sum(v.reached for v in self.visits),
             "targets_unreachable": sum(not v.reached for v in self.visits),
             "rejected": self.rejects,
+            "targets_skipped": self.skipped,
             "stale_events": self.stale_events,
             "hold_ticks": self.stats.holds,
         }
@@ -337,7 +355,7 @@ class TeleopResult:
             f"  targets: {self.received} received, {sum(v.reached for v in self.visits)} reached, "
             f"{sum(not v.reached for v in self.visits)} unreachable, {rejected} rejected"
             + (f" ({by_reason})" if by_reason else "")
-            + f"; {self.stale_events} stale; {self.stats.holds} hold ticks"
+            + f"; {self.skipped} skipped (lag); {self.stale_events} stale; {self.stats.holds} hold ticks"
         ]
         return "\n".join(lines)
 
@@ -452,6 +470,7 @@ def run_teleop(
         received=follower.received,
         rejects=follower.source.rejects,
         stale_events=follower.stale_events,
+        skipped=follower.skipped,
         q_final=np.array(q_final, dtype=np.float64),
         orientation_error=orientation_error,
         orientation_tolerance=follower.orientation_tolerance,

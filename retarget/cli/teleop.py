@@ -32,6 +32,7 @@ if TYPE_CHECKING:
 
 DEFAULT_ARM = "wx250s"
 DEFAULT_UDP_TIMEOUT = 1.0  #: s, the dead-man timeout of --udp unless --timeout says otherwise
+DEFAULT_UDP_MAX_LAG = 1.0  #: s, --udp skips targets this far behind the newest unless --max-lag says otherwise
 
 EXAMPLES = """\
 examples:
@@ -70,6 +71,11 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     t.add_argument("--base-pose", metavar="X,Y,Z[,R,P,Y]", help="the arm base in the world (m, deg); default origin")
     t.add_argument(
         "--timeout", metavar="S", help=f"hold when no target came for S s (default: off; --udp {DEFAULT_UDP_TIMEOUT:g})"
+    )
+    t.add_argument(
+        "--max-lag",
+        metavar="S",
+        help=f"skip targets S s older than the newest (default: visit all; --udp {DEFAULT_UDP_MAX_LAG:g})",
     )
     t.add_argument("--max-speed", default="0.2", metavar="M/S", help="Cartesian speed limit of the tool (default 0.2)")
     t.add_argument("--tolerance", default="0.005", metavar="M", help="reached within this distance (default 0.005)")
@@ -116,15 +122,17 @@ def _check_options(args: argparse.Namespace) -> dict[str, Any]:
         "margin": number(args.margin, option="--margin"),
         "max_bytes": number(args.max_bytes, option="--max-bytes", integer=True),
         "timeout": number(args.timeout, option="--timeout"),
+        "max_lag": number(args.max_lag, option="--max-lag"),
         "box": _numbers(args.box, option="--box", count=(6,)),
         "base_pose": _numbers(args.base_pose, option="--base-pose", count=(3, 6)),
     }
-    if out["timeout"] is None and args.udp is not None:
-        out["timeout"] = DEFAULT_UDP_TIMEOUT
-    for key in ("tolerance", "timeout"):
+    if args.udp is not None:
+        out["timeout"] = DEFAULT_UDP_TIMEOUT if out["timeout"] is None else out["timeout"]
+        out["max_lag"] = DEFAULT_UDP_MAX_LAG if out["max_lag"] is None else out["max_lag"]
+    for key in ("tolerance", "timeout", "max_lag"):
         value = out[key]
         if value is not None and not (value > 0 and value < float("inf")):
-            raise ConfigError("Expected a number > 0", key=f"--{key}", value=value)
+            raise ConfigError("Expected a number > 0", key="--" + key.replace("_", "-"), value=value)
     if not out["max_speed"] > 0:
         raise ConfigError("Expected a speed > 0 m/s ('inf' for none)", key="--max-speed", value=out["max_speed"])
     if not out["max_bytes"] >= 1:
@@ -220,6 +228,7 @@ def run(args: argparse.Namespace) -> int:
                         rate=config.rate,
                         max_speed=opts["max_speed"],
                         timeout=opts["timeout"],
+                        max_lag=opts["max_lag"],
                         lockstep=args.fast,
                     )
                     progress = _progress(follower) if args.progress or sys.stderr.isatty() else None

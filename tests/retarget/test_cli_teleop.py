@@ -177,6 +177,7 @@ def test_help_has_examples(capsys):
         (["--to", "0.3,0,0.2", "--port", "/dev/ttyUSB9", "--fast"], "--port: --fast needs the simulated bus"),
         (["--udp", "nope"], "--udp: Expected"),
         (["--to", "0.3,0,0.2", "--timeout", "0"], "--timeout: Expected a number > 0"),
+        (["--stdin", "--max-lag", "-1"], "--max-lag: Expected a number > 0"),
         (["--to", "0.3,0,0.2", "--max-speed", "-1"], "--max-speed"),
         (["--to", "0.3,0,0.2", "--max-speed", "fast"], "--max-speed: Expected a number"),
         (["--to", "0.3,0,0.2", "--box", "1,2"], "--box: Expected 6"),

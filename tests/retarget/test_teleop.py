@@ -97,13 +97,15 @@ def session(arm):
     import sim
     from drivers import DynamixelBus
 
-    def go(make_source, *, max_ticks=None, on_tick=None, settle_time=2.0, **kwargs):
+    def go(make_source, *, max_ticks=None, on_tick=None, settle_time=2.0, ref=None, **kwargs):
         clock = VirtualClock()
         simbus = sim.SimBus.from_arm(arm, clock=clock, faults=sim.Faults(wire=True))
         url = sim.attach(simbus)
         gate = TargetGate(TargetBounds.for_arm(arm), clock=clock)
         source = make_source(gate)
         follower = Follower(arm, source, clock=clock, rate=100.0, **kwargs)
+        if ref is not None:
+            ref.append(follower)
         records: list[TickRecord] = []
 
         def tick(r):
@@ -258,6 +260,28 @@ def test_stale_stream_holds_position(arm, session):
     # the stream resumed: it moved again, and went stale again 0.5 s after the second target
     assert not np.allclose(by_tick[200].q_cmd, by_tick[150].q_cmd)
     assert follower.phase is Phase.STALE and result.stale_events == 2
+
+
+def test_a_fast_live_stream_lags_at_most_max_lag(arm, session):
+    """A target every tick moving at 1 m/s, five times the speed limit: old targets are skipped, so the one
+    steered toward is never more than max_lag behind the newest, and the arm ends at the last one."""
+    followers: list[Follower] = []
+    lags: list[float] = []
+
+    def stream(r: TickRecord, source):
+        if r.tick < 200:
+            source.feed(f"0.25 {-0.1 + 0.001 * r.tick:.4f} 0.2")  # 1 mm per tick for 2 s
+        elif r.tick == 200:
+            source.close()
+        goal = followers[0].goal
+        if goal is not None:
+            lags.append(source.latest().received - goal.received)
+
+    result, _, simbus, _, follower = session(Source, max_ticks=2000, on_tick=stream, max_lag=0.25, ref=followers)
+    assert follower.skipped > 100 and result.skipped == follower.skipped
+    assert max(lags) <= 0.25 + 0.01 + 1e-9  # one tick of slack: targets are taken at the next tick
+    assert result.reached_target
+    np.testing.assert_allclose(wx250s_tool(servo_joint_angles(simbus, arm)), [0.25, 0.099, 0.2], atol=3e-3)
 
 
 # ------------------------------------------------------------------------------------------------ errors
