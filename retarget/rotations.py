@@ -95,33 +95,37 @@ def compose_entries(axes: Sequence[int], cos: Sequence[np.ndarray], sin: Sequenc
     """The 3x3 product of :func:`compose_cos_sin` as nested lists of entries: ``None`` (zero), ``1.0`` or arrays.
 
     For callers that store matrices entry-major (``(3, 3, ...)``).  ``axes``
-    must not be empty.
+    must not be empty.  Signs are carried symbolically until the end, so a
+    ZYX product costs 19 elementwise operations, as its closed form does.
     """
     mat = _elementary(axes[0], cos[0], sin[0])
     for m in range(1, len(axes)):
         mat = _symbolic_matmul(mat, _elementary(axes[m], cos[m], sin[m]))
-    return mat
+    return [[_value(e) for e in row] for row in mat]
+
+
+# Symbolic entries: None is 0, 1.0 is 1, (sign, array) is +/-array.
 
 
 def _elementary(a: int, c: np.ndarray, s: np.ndarray) -> list[list]:
     i, k = (a + 1) % 3, (a + 2) % 3
     m: list[list] = [[None] * 3 for _ in range(3)]
     m[a][a] = 1.0
-    m[i][i] = c
-    m[k][k] = c
-    m[i][k] = -s
-    m[k][i] = s
+    m[i][i] = (1, c)
+    m[k][k] = (1, c)
+    m[i][k] = (-1, s)
+    m[k][i] = (1, s)
     return m
 
 
 def _mul(x, y):
     if x is None or y is None:
         return None
-    if isinstance(x, float) and x == 1.0:
+    if isinstance(x, float):
         return y
-    if isinstance(y, float) and y == 1.0:
+    if isinstance(y, float):
         return x
-    return x * y
+    return (x[0] * y[0], x[1] * y[1])
 
 
 def _add(x, y):
@@ -129,7 +133,17 @@ def _add(x, y):
         return y
     if y is None:
         return x
-    return x + y
+    if isinstance(x, float) or isinstance(y, float):
+        return (1, _value(x) + _value(y))
+    if x[0] == y[0]:
+        return (x[0], x[1] + y[1])
+    return (x[0], x[1] - y[1])
+
+
+def _value(e):
+    if e is None or isinstance(e, float):
+        return e
+    return e[1] if e[0] > 0 else -e[1]
 
 
 def _symbolic_matmul(p: list[list], q: list[list]) -> list[list]:
