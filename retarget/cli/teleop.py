@@ -200,6 +200,7 @@ def run(args: argparse.Namespace) -> int:
         rate=number(args.rate, option="--rate"),
         velocity_scale=number(args.velocity_scale, option="--velocity-scale"),
         max_ticks=number(args.max_ticks, option="--max-ticks", integer=True),
+        ik_tolerance=min(1e-3, opts["tolerance"] / 2),  # a tight --tolerance tightens the IK too
     )
     if args.interactive and not (sys.stdin.isatty() and sys.stdout.isatty()):
         raise ConfigError("--interactive needs a terminal on stdin and stdout", key="--interactive", value=True)
@@ -227,6 +228,7 @@ def run(args: argparse.Namespace) -> int:
                         clock=setup.clock,
                         rate=config.rate,
                         max_speed=opts["max_speed"],
+                        tolerance=min(1.5 * config.ik_tolerance, opts["tolerance"]),
                         timeout=opts["timeout"],
                         max_lag=opts["max_lag"],
                         lockstep=args.fast,
