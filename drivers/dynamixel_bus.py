@@ -47,7 +47,7 @@ from drivers.control_table import MODEL_BY_NUMBER, hardware_error_names
 from drivers.latency import check_latency_timer
 from drivers.port import open_port
 from drivers.servo_plan import MAX_PROFILE_MS, Profile, ServoPlan, ServoSettings, plan_servos
-from retarget.bus import BusStatus, ShutdownMode
+from retarget.bus import BusStatus, ShutdownMode, close_after_failure
 from retarget.clock import Clock, MonotonicClock
 from retarget.errors import BusError
 
@@ -244,7 +244,10 @@ class DynamixelBus:
         return self
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None):
-        self.close()
+        if exc is None:
+            self.close()
+        else:  # a failing shutdown must not mask the error that ended the block
+            close_after_failure(self)
 
     def __repr__(self) -> str:
         state = "connected" if self.connected else "closed"

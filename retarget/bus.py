@@ -9,12 +9,16 @@ radians, ordered as ``Arm.joint_names`` (the gripper is not part of them).
 
 from __future__ import annotations
 
+import contextlib
 import enum
-from collections.abc import Mapping
+import logging
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
 import numpy as np
+
+log = logging.getLogger(__name__)
 
 
 class ShutdownMode(enum.Enum):
@@ -66,3 +70,28 @@ class Bus(Protocol):
 
     def status(self) -> BusStatus:
         """Counters and health since connect."""
+
+
+@contextlib.contextmanager
+def connected(bus: Bus) -> Iterator[Bus]:
+    """Connect ``bus`` for a ``with`` block and always close it, so its shutdown sequence runs.
+
+    When the block fails (a bus error, Ctrl-C), a failure of the shutdown itself
+    is logged, not raised: the error that stopped the run is the one the user
+    must see, not a consequence of it such as a torque-off that also got no reply.
+    """
+    bus.connect()
+    try:
+        yield bus
+    except BaseException:
+        close_after_failure(bus)
+        raise
+    bus.close()
+
+
+def close_after_failure(bus: Bus) -> None:
+    """Close ``bus`` while another exception is in flight: log a failing shutdown instead of masking that exception."""
+    try:
+        bus.close()
+    except Exception as exc:  # noqa: BLE001 - the original failure is re-raised by the caller
+        log.error("shutdown after the failure also failed: %s", exc)

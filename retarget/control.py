@@ -52,6 +52,7 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
+from retarget.bus import connected
 from retarget.clock import Clock, MonotonicClock
 from retarget.errors import ConfigError
 from retarget.summary import RunSummary, summarize
@@ -512,8 +513,5 @@ def run_ticks(
 
 def run_on_bus(loop: ControlLoop, bus: Bus) -> RunSummary:
     """Connect ``bus``, run ``loop`` on it and always close it (its shutdown sequence runs even on Ctrl-C)."""
-    bus.connect()
-    try:
+    with connected(bus):
         return loop.run(bus)
-    finally:
-        bus.close()

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from retarget.bus import connected
 from retarget.cli._bus import add_bus_arguments, build_bus, check_bus_options, sigint_stops
 from retarget.errors import ConfigError
 
@@ -237,11 +238,8 @@ def run(args: argparse.Namespace) -> int:
             if setup is None:
                 summary = loop.run(None)
             else:
-                setup.bus.connect()
-                try:
+                with connected(setup.bus):
                     summary = loop.run(setup.bus)
-                finally:
-                    setup.bus.close()
     finally:
         if telemetry is not None:
             telemetry.close()

@@ -21,6 +21,7 @@ import sys
 import threading
 from typing import TYPE_CHECKING, Any
 
+from retarget.bus import connected
 from retarget.cli._bus import add_bus_arguments, build_bus, check_bus_options, sigint_stops
 from retarget.errors import ConfigError
 
@@ -216,38 +217,34 @@ def run(args: argparse.Namespace) -> int:
         if args.telemetry is not None:
             out = sys.stdout if args.telemetry == "-" else args.telemetry
             telemetry = TelemetryWriter(out, arm.joint_names).open()
-        with sigint_stops(stop.set):
-            setup.bus.connect()
-            try:
-                if args.interactive:
-                    result = _interactive(arm, setup, gate, config, opts, stop, telemetry)
-                else:
-                    follower = Follower(
-                        arm,
-                        source,
-                        clock=setup.clock,
-                        rate=config.rate,
-                        max_speed=opts["max_speed"],
-                        tolerance=min(1.5 * config.ik_tolerance, opts["tolerance"]),
-                        timeout=opts["timeout"],
-                        max_lag=opts["max_lag"],
-                        lockstep=args.fast,
-                    )
-                    progress = _progress(follower) if args.progress or sys.stderr.isatty() else None
-                    result = run_teleop(
-                        arm,
-                        follower,
-                        config=config,
-                        clock=setup.clock,
-                        bus=setup.bus,
-                        tolerance=opts["tolerance"],
-                        on_tick=telemetry,
-                        on_progress=progress,
-                        stop=stop,
-                        name=_name(args),
-                    )
-            finally:
-                setup.bus.close()
+        with sigint_stops(stop.set), connected(setup.bus):
+            if args.interactive:
+                result = _interactive(arm, setup, gate, config, opts, stop, telemetry)
+            else:
+                follower = Follower(
+                    arm,
+                    source,
+                    clock=setup.clock,
+                    rate=config.rate,
+                    max_speed=opts["max_speed"],
+                    tolerance=min(1.5 * config.ik_tolerance, opts["tolerance"]),
+                    timeout=opts["timeout"],
+                    max_lag=opts["max_lag"],
+                    lockstep=args.fast,
+                )
+                progress = _progress(follower) if args.progress or sys.stderr.isatty() else None
+                result = run_teleop(
+                    arm,
+                    follower,
+                    config=config,
+                    clock=setup.clock,
+                    bus=setup.bus,
+                    tolerance=opts["tolerance"],
+                    on_tick=telemetry,
+                    on_progress=progress,
+                    stop=stop,
+                    name=_name(args),
+                )
     finally:
         if source is not None:
             source.close()

@@ -145,6 +145,20 @@ def test_sigint_stops_cleanly_through_the_shutdown_sequence(arm, registered, cap
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the handler was put back
 
 
+def test_a_servo_lost_mid_run_reports_that_failure_not_the_shutdown_after_it(capsys, caplog, tmp_path):
+    """Servo 4 stops answering at 2 s: exit 4, the one-line error is the lost read (the torque-off that also gets
+    no reply during the shutdown is only logged), and the telemetry up to the failure is on disk."""
+    csv_path = tmp_path / "run.csv"
+    code, _, err = replay(capsys, "--fast", "--port", "sim://wx250s?unplug=4@2", "--telemetry", str(csv_path))
+    assert code == 4
+    last = err.strip().splitlines()[-1]
+    assert re.fullmatch(r"retarget: servo 4: no status packet \(Present Position\) .*", last), last
+    assert "shutdown after the failure also failed: servo 4: could not turn torque off" in caplog.text
+    rows = list(csv.DictReader(csv_path.read_text().splitlines()))
+    assert 150 <= len(rows) <= 200  # 100 Hz up to the 2 s mark, the last row fully written
+    assert rows[-1]["bus_retries"] != ""
+
+
 SYNC_WRITE = 0x83
 
 
