@@ -24,7 +24,8 @@ import retarget
 from retarget.clock import VirtualClock
 from retarget.control import LoopConfig, TickRecord
 from retarget.teleop import Follower, run_teleop
-from retarget.teleop_input import Source, TargetBounds, TargetGate
+from retarget.teleop_input import TargetBounds, TargetGate
+from retarget.teleop_sources import Source
 
 
 def check(ok: bool) -> str:

@@ -1,6 +1,6 @@
 """Teleoperation: steer the tool point to targets that arrive while the arm moves.
 
-A :class:`Follower` turns a target source (:mod:`retarget.teleop_input`: ``--to``, ``--stdin``, ``--udp``,
+A :class:`Follower` turns a target source (:mod:`retarget.teleop_sources`: ``--to``, ``--stdin``, ``--udp``,
 the interactive keys) into the per-tick target of the control loop (:class:`retarget.control.TargetSource`):
 
 - accepted targets queue in arrival order; the follower steers toward the oldest one it has not passed,
@@ -46,7 +46,8 @@ if TYPE_CHECKING:
     from retarget.control import LoopConfig, TickRecord, TickStats
     from retarget.ik import CCDSolver, IKResult
     from retarget.summary import RunSummary
-    from retarget.teleop_input import Source, Target
+    from retarget.teleop_input import Target
+    from retarget.teleop_sources import Source
 
 __all__ = ["Follower", "Phase", "PoseSolver", "TeleopResult", "Visit", "run_teleop", "tool_point"]
 

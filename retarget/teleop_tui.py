@@ -21,7 +21,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from retarget.teleop_input import Source, Target, TargetBounds, TargetRejected
+from retarget.teleop_input import Target, TargetBounds, TargetRejected
+from retarget.teleop_sources import Source
 
 if TYPE_CHECKING:
     from retarget.arm import Arm

@@ -29,7 +29,8 @@ if TYPE_CHECKING:
     from retarget.arm import Arm
     from retarget.control import TickRecord
     from retarget.teleop import Follower, TeleopResult
-    from retarget.teleop_input import BasePose, Source, TargetGate
+    from retarget.teleop_input import BasePose, TargetGate
+    from retarget.teleop_sources import Source
 
 DEFAULT_ARM = "wx250s"
 DEFAULT_UDP_TIMEOUT = 1.0  #: s, the dead-man timeout of --udp unless --timeout says otherwise
@@ -156,7 +157,7 @@ def _gate(args: argparse.Namespace, arm: Arm, clock: Any, opts: dict[str, Any]) 
 
 
 def _source(args: argparse.Namespace, gate: TargetGate) -> Source:
-    from retarget.teleop_input import OneShotSource, StdinSource, UdpSource, parse_address
+    from retarget.teleop_sources import OneShotSource, StdinSource, UdpSource, parse_address
 
     if args.to is not None:
         return OneShotSource(gate, args.to, rpy=args.rpy)

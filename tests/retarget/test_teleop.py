@@ -16,7 +16,8 @@ from retarget.clock import VirtualClock
 from retarget.control import LoopConfig, TickRecord
 from retarget.errors import ConfigError
 from retarget.teleop import Follower, Phase, run_teleop, tool_point
-from retarget.teleop_input import OneShotSource, Source, StdinSource, TargetBounds, TargetGate, UdpSource
+from retarget.teleop_input import TargetBounds, TargetGate
+from retarget.teleop_sources import OneShotSource, Source, StdinSource, UdpSource
 
 from .test_teleop_input import garbage
 
