@@ -31,7 +31,8 @@ import numpy as np
 import retarget
 from retarget.clock import MonotonicClock, VirtualClock
 from retarget.control import ControlLoop, LoopConfig, TickRecord
-from retarget.mapping import MappingConfig, Side, retarget_targets
+from retarget.mapping import retarget_targets
+from retarget.mapping_config import MappingConfig, Side
 
 REPO = Path(__file__).resolve().parent.parent
 SHARED = Path(os.environ.get("RETARGET_SHARED_BVH", REPO.parent / "shared" / "bvh"))

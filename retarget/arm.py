@@ -90,7 +90,7 @@ class Arm:
     rest_pose: tuple[float, ...]  #: rad, one per joint (the "sleep" pose)
     baud: int = 1_000_000
     gripper: Gripper | None = None
-    #: the raw ``[mapping]`` table, read and validated by retarget.mapping
+    #: the raw ``[mapping]`` table, read and validated by retarget.mapping_config
     mapping: Mapping[str, Any] = field(default_factory=dict)
     source: Path | None = None  #: the file it was loaded from
     title: str = ""  #: human name, e.g. "WidowX-250 6DOF"

@@ -39,7 +39,7 @@ TOML schema (every angle in the file is in DEGREES, lengths in metres; the loade
     servo = { id = 9, model = "XL430-W250" }
     limits = [-21.7, 72.7]            # required, degrees of the servo shaft
 
-    [mapping]                         # optional, any keys: read by retarget.mapping
+    [mapping]                         # optional, any keys: read by retarget.mapping_config
 
 A servo table has ``id`` (0-252, unique over the arm), ``model`` (one of
 ``retarget.arm.SERVO_MODELS``), ``direction`` (+1 normal, -1 reverse; default +1) and

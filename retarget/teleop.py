@@ -368,7 +368,8 @@ class PoseSolver:
 
     def __init__(self, arm: Arm, config: LoopConfig, *, orientation_weight: float = 0.1):
         from retarget.ik import CCDSolver
-        from retarget.mapping import MappingConfig, ik_weights
+        from retarget.mapping import ik_weights
+        from retarget.mapping_config import MappingConfig
 
         mapping = MappingConfig.from_table(arm.mapping, path=arm.source)
         budget = {"max_iterations": config.ik_iterations, "tolerance": config.ik_tolerance}

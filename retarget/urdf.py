@@ -34,7 +34,7 @@ files of :mod:`retarget.arm_config`)::
     servo = { id = 5, model = "XL430-W250" }
     limits = [-20, 70]
 
-    [mapping]                        # optional, read by retarget.mapping
+    [mapping]                        # optional, read by retarget.mapping_config
 """
 
 from __future__ import annotations

@@ -60,7 +60,7 @@ def add_clip_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def add_mapping_arguments(parser: argparse.ArgumentParser) -> None:
-    """Flags overriding the arm file's ``[mapping]`` table (see ``retarget.mapping``)."""
+    """Flags overriding the arm file's ``[mapping]`` table (see ``retarget.mapping_config``)."""
     g = parser.add_argument_group("mapping (overrides the arm file's [mapping] table)")
     g.add_argument("--side", default=None, metavar="left|right", help="which human arm drives the robot")
     g.add_argument(
@@ -107,7 +107,8 @@ class Inputs:
 def load_inputs(args: argparse.Namespace) -> Inputs:
     """Load the clip and the arm, build the mapping from the arm file + flags, and map every frame."""
     import retarget
-    from retarget.mapping import MappingConfig, retarget_targets
+    from retarget.mapping import retarget_targets
+    from retarget.mapping_config import MappingConfig
 
     if args.clip is None:
         from retarget.bvh import DEMO_CLIP
@@ -134,7 +135,7 @@ def load_inputs(args: argparse.Namespace) -> Inputs:
 
 def _flag_names(overrides: dict[str, Any]) -> dict[str, Any]:
     """Validate flag values one by one so an error names the flag (``--floor``), not the mapping key."""
-    from retarget.mapping import MappingConfig
+    from retarget.mapping_config import MappingConfig
 
     out = {}
     for name, value in overrides.items():

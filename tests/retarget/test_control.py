@@ -11,7 +11,8 @@ import retarget
 from retarget.clock import VirtualClock
 from retarget.control import ControlLoop, LoopConfig, TickRecord, run_on_bus
 from retarget.errors import ConfigError
-from retarget.mapping import MappingConfig, Targets, Workspace
+from retarget.mapping import Targets, Workspace
+from retarget.mapping_config import MappingConfig
 
 
 @pytest.fixture(scope="module")
