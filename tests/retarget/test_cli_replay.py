@@ -15,26 +15,8 @@ import pytest
 
 import retarget
 from retarget.cli import main
-from retarget.clock import VirtualClock
 
 from .test_control import servo_angles, torque
-
-
-@pytest.fixture(scope="module")
-def arm():
-    return retarget.load_arm("wx250s")
-
-
-@pytest.fixture
-def registered(arm):
-    """A simulated wx250s on a virtual clock registered as sim://@NAME, so the test can look at its servos."""
-    import sim
-
-    simbus = sim.SimBus.from_arm(arm, clock=VirtualClock(), faults=sim.Faults(wire=True))
-    name = f"cli-{id(simbus)}"
-    url = sim.register(name, simbus)
-    yield simbus, url
-    sim.unregister(name)
 
 
 def replay(capsys, *args: str) -> tuple[int, str, str]:

@@ -14,29 +14,10 @@ import signal
 import numpy as np
 import pytest
 
-import retarget
 from retarget.cli import main
-from retarget.clock import VirtualClock
 
 from .test_teleop import goal_registers, servo_joint_angles, wx250s_tool
 from .test_teleop_input import garbage
-
-
-@pytest.fixture(scope="module")
-def arm():
-    return retarget.load_arm("wx250s")
-
-
-@pytest.fixture
-def registered(arm):
-    """A simulated wx250s on a virtual clock registered as sim://@NAME, so the test can read its registers."""
-    import sim
-
-    simbus = sim.SimBus.from_arm(arm, clock=VirtualClock(), faults=sim.Faults(wire=True))
-    name = f"teleop-{id(simbus)}"
-    url = sim.register(name, simbus)
-    yield simbus, url
-    sim.unregister(name)
 
 
 def teleop(capsys, *args: str) -> tuple[int, str, str]:

@@ -15,11 +15,6 @@ from retarget.mapping import Targets, Workspace
 from retarget.mapping_config import MappingConfig
 
 
-@pytest.fixture(scope="module")
-def arm():
-    return retarget.load_arm("wx250s")
-
-
 def circle_targets(arm, *, n_frames: int = 61, frame_time: float = 1 / 30, radius: float = 0.08) -> Targets:
     """A circle in front of the arm, 2 s at 30 fps, well inside the workspace."""
     t = np.arange(n_frames) * frame_time

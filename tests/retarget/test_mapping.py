@@ -85,11 +85,6 @@ def random_frames(seed: int, n: int = 90) -> np.ndarray:
     return frames
 
 
-@pytest.fixture(scope="module")
-def arm():
-    return retarget.load_arm("wx250s")
-
-
 def targets_of(frames: np.ndarray, arm, config: MappingConfig | None = None, *, scale: float = 1.0) -> Targets:
     return retarget_targets(parse_bvh(bvh_text(frames, scale=scale)), arm, config or MappingConfig())
 

@@ -8,16 +8,10 @@ import io
 import numpy as np
 import pytest
 
-import retarget
 from retarget.clock import VirtualClock
 from retarget.control import ControlLoop, LoopConfig, TickRecord
 from retarget.mapping import Targets, Workspace
 from retarget.telemetry import TelemetryWriter, telemetry_columns
-
-
-@pytest.fixture(scope="module")
-def arm():
-    return retarget.load_arm("wx250s")
 
 
 def line_targets(arm) -> Targets:

@@ -11,7 +11,6 @@ import random
 import numpy as np
 import pytest
 
-import retarget
 from retarget.clock import VirtualClock
 from retarget.control import LoopConfig, TickRecord
 from retarget.errors import ConfigError
@@ -22,11 +21,6 @@ from retarget.teleop_sources import OneShotSource, Source, StdinSource, UdpSourc
 from .test_teleop_input import garbage
 
 TICK_RAD = 2 * math.pi / 4096
-
-
-@pytest.fixture(scope="module")
-def arm():
-    return retarget.load_arm("wx250s")
 
 
 # ------------------------------------------------------------------------------------------------ independent FK

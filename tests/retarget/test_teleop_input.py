@@ -9,7 +9,6 @@ import random
 import numpy as np
 import pytest
 
-import retarget
 from retarget.clock import VirtualClock
 from retarget.errors import ConfigError
 from retarget.teleop_input import (
@@ -21,11 +20,6 @@ from retarget.teleop_input import (
     parse_message,
     step_toward,
 )
-
-
-@pytest.fixture(scope="module")
-def arm():
-    return retarget.load_arm("wx250s")
 
 
 @pytest.fixture

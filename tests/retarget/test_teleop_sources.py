@@ -11,18 +11,12 @@ import time
 import numpy as np
 import pytest
 
-import retarget
 from retarget.clock import VirtualClock
 from retarget.errors import ConfigError
 from retarget.teleop_input import TargetBounds, TargetGate, TargetRejected
 from retarget.teleop_sources import OneShotSource, StdinSource, UdpSource, is_loopback, parse_address
 
 from .test_teleop_input import garbage
-
-
-@pytest.fixture(scope="module")
-def arm():
-    return retarget.load_arm("wx250s")
 
 
 @pytest.fixture

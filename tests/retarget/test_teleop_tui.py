@@ -5,15 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import retarget
 from retarget.clock import VirtualClock
 from retarget.teleop_input import TargetBounds, TargetGate
 from retarget.teleop_tui import KEYS, MAX_STEP, MIN_STEP, Action, Jog, KeySource
-
-
-@pytest.fixture(scope="module")
-def arm():
-    return retarget.load_arm("wx250s")
 
 
 @pytest.fixture

@@ -1,0 +1,30 @@
+"""Fixtures shared by the tests of the ``retarget`` package."""
+
+from __future__ import annotations
+
+import pytest
+
+import retarget
+from retarget.clock import VirtualClock
+
+
+@pytest.fixture(scope="session")
+def arm() -> retarget.Arm:
+    """The default arm, WidowX-250 6DOF (frozen, so one instance serves every test)."""
+    return retarget.load_arm("wx250s")
+
+
+@pytest.fixture
+def registered(arm):
+    """A simulated wx250s with the wire model, on a virtual clock, registered as ``sim://@NAME``.
+
+    Yields ``(simbus, url)``: the CLI opens the URL like any port, and the test reads the simulated servos'
+    registers from ``simbus``.
+    """
+    import sim
+
+    simbus = sim.SimBus.from_arm(arm, clock=VirtualClock(), faults=sim.Faults(wire=True))
+    name = f"test-{id(simbus)}"
+    url = sim.register(name, simbus)
+    yield simbus, url
+    sim.unregister(name)
