@@ -40,6 +40,7 @@ _PKT_INSTRUCTION = 7
 _PKT_ERROR = 8
 _PKT_PARAMS = 9
 _INST_STATUS = 0x55
+_NOT_ALERT = 0xFF & ~ALERT_BIT  #: the error-number bits of a status ERR byte
 
 COMM_RESULT_NAMES: Mapping[int, str] = {
     COMM_PORT_BUSY: "port busy",
@@ -242,6 +243,15 @@ class Link:
         if result != COMM_SUCCESS:
             raise self._fail(f"{comm_result_name(result)} (sync write at address {address})", values)
 
+    def sync_write_param(self, address: int, size: int, param: list[int]) -> None:
+        """One SYNC_WRITE from the SDK's parameter list: per servo its ID then ``size`` data bytes, little-endian.
+
+        The tick path's form of :meth:`sync_write` (no mapping or bytes objects to build).
+        """
+        result = self.ph.syncWriteTxOnly(self.port, address, size, param, len(param))
+        if result != COMM_SUCCESS:
+            raise self._fail(f"{comm_result_name(result)} (sync write at address {address})", param[:: size + 1])
+
     def _collect(self, lengths: Mapping[int, int]) -> dict[int, Reply]:
         """Status packets after a SYNC_READ or BULK_READ, matched by ID until all came or the timeout passed."""
         replies: dict[int, Reply] = {}
@@ -279,12 +289,16 @@ class Link:
         if result != COMM_SUCCESS or len(raw) < (length + 4) * len(ids) - 2:
             return None
         replies: dict[int, Reply] = {}
-        for k in range(len(ids)):  # slots of ERR ID DATA[length] CRC16 (the last CRC is the packet's)
-            i = k * (length + 4)
+        alerts = self.alerts
+        # slots of ERR ID DATA[length] CRC16 (the last CRC is the packet's); inline, on the tick path
+        for i in range(0, (length + 4) * len(ids), length + 4):
             dxl_id = raw[i + 1]
             if dxl_id not in ids:
                 return None
-            replies[dxl_id] = self._note(Reply(dxl_id, raw[i], bytes(raw[i + 2 : i + 2 + length])))
+            error = raw[i]
+            if error & ALERT_BIT:
+                alerts.add(dxl_id)
+            replies[dxl_id] = Reply(dxl_id, error, bytes(raw[i + 2 : i + 2 + length]))
         return replies
 
     def bulk_read_once(self, requests: Mapping[int, tuple[int, int]]) -> dict[int, Reply]:
@@ -334,10 +348,10 @@ class Link:
                 got = self.sync_read_once(ids, address, length)
             else:
                 got = self.bulk_read_once(requests)
+            if len(got) == len(ids) and not any(r.error & _NOT_ALERT for r in got.values()):
+                return got  # every servo answered (the replies hold only requested IDs), none with an error
             errors = {i: name for i, r in got.items() if (name := status_error_name(r.error)) is not None}
             missing = set(ids) - set(got)
-            if not missing and not errors:
-                return got
         what = what or "a group read"
         if missing:
             raise self._fail(f"no status packet ({what}) at {self.baud} baud after {self.retries + 1} tries", missing)

@@ -63,6 +63,7 @@ _EEPROM_END = 56
 _STATE_START = 126
 _STATE_END = 147
 _MAX_RECOVERIES = 3  #: reboots per servo and connect before a hardware error is final (recover=True)
+_GOAL_POSITION = 116  #: Goal Position, 4 bytes, the same address on every X model
 
 
 @dataclass(frozen=True)
@@ -199,8 +200,6 @@ class DynamixelBus:
         self._position_requests = {s.id: (s.model.register("Present Position").address, 4) for s in js}
         self._state_requests = {s.id: (_STATE_START, _STATE_END - _STATE_START) for s in self.servos}
         self._servo_offset = np.array([s.offset for s in js], dtype=np.int64)
-        self._servo_min = np.array([s.min_tick for s in js], dtype=np.int64)
-        self._servo_max = np.array([s.max_tick for s in js], dtype=np.int64)
         # the joint range every servo of the joint can reach: the intersection over its servos
         lower = np.full(arm.n_joints, -np.inf)
         upper = np.full(arm.n_joints, np.inf)
@@ -210,12 +209,22 @@ class DynamixelBus:
         self.lower = np.maximum(lower, arm.lower)  #: (n_joints,) rad, the clamp of write_goals
         self.upper = np.minimum(upper, arm.upper)
         self.max_step = arm.max_velocity * dt if dt is not None and step_limit else None
+        self._max_step = None if self.max_step is None else tuple(self.max_step.tolist())
+        # the tick path (write_goals, read_positions) works on plain floats: numpy costs more than the math
+        # on a handful of values, and every microsecond there is a microsecond the wire sits idle
+        self._clamp = tuple(zip(self.lower.tolist(), self.upper.tolist(), strict=True))  #: per joint (lo, hi) rad
+        self._goal_plan = tuple(
+            (s.id, s.joint, units.CENTER_TICK + s.offset, s.min_tick, s.max_tick) for s in js
+        )  #: per joint servo: ID, joint, tick of 0 rad, tick limits
+        self._primary_plan = tuple(
+            (int(k), units.CENTER_TICK + js[k].offset) for k in self._primary_index
+        )  #: per joint: index of its primary in the joint servos, tick of 0 rad
 
         self._link: Link | None = None
         self._last_link: Link | None = None  #: keeps the counters readable after close
         self._torque = False
         self._faulted: str | None = None
-        self._last_goal: np.ndarray | None = None
+        self._last_goal: list[float] | None = None  #: rad per joint, the goals last sent
         self._ticks = 0
         self._hardware_errors: dict[int, tuple[str, ...]] = {}
         self._recoveries: dict[int, int] = {}  #: servo ID -> reboots since connect
@@ -326,10 +335,9 @@ class DynamixelBus:
         Alert bit set is reported by its hardware error names (or rebooted and configured again with
         ``recover=True``).
         """
-        ticks = self._read_joint_ticks()
+        ticks = self._read_joint_tick_list()
         self._ticks += 1
-        q = units.ticks_to_rad(ticks[self._primary_index], offset=self._servo_offset[self._primary_index])
-        return q
+        return np.array([(ticks[k] - zero) * units.RAD_PER_TICK for k, zero in self._primary_plan])
 
     def read_state(self) -> ServoState:
         """Health of every servo (gripper included) in one group read of Present Load/Current .. Temperature.
@@ -351,12 +359,17 @@ class DynamixelBus:
         q = np.asarray(q, dtype=np.float64)
         if q.shape != (self.arm.n_joints,):
             raise ValueError(f"Expected goals of shape ({self.arm.n_joints},) in radians, got shape {q.shape}")
-        if not np.all(np.isfinite(q)):
+        values = q.tolist()
+        if not all(map(math.isfinite, values)):
             raise ValueError(f"Expected finite goals in radians, got {q}")
-        goal = np.clip(q, self.lower, self.upper)
-        if self.max_step is not None and self._last_goal is not None:
-            goal = self._last_goal + np.clip(goal - self._last_goal, -self.max_step, self.max_step)
-        self._send_goal_ticks(link, goal)
+        goal = [lo if v < lo else hi if v > hi else v for v, (lo, hi) in zip(values, self._clamp, strict=True)]
+        last = self._last_goal
+        if self._max_step is not None and last is not None:
+            goal = [
+                p + (m if v - p > m else -m if v - p < -m else v - p)
+                for v, p, m in zip(goal, last, self._max_step, strict=True)
+            ]
+        self._send_goals(link, goal)
         self._last_goal = goal
 
     def set_torque(self, enabled: bool) -> None:
@@ -374,7 +387,7 @@ class DynamixelBus:
         self._check_shadows(ticks)
         primary = self._primary_index
         q = np.clip(units.ticks_to_rad(ticks[primary], offset=self._servo_offset[primary]), self.lower, self.upper)
-        self._send_goal_ticks(link, q)  # every servo of a joint gets its primary's angle, as write_goals will
+        self._send_goals(link, q.tolist())  # every servo of a joint gets its primary's angle, as write_goals will
         if self._gripper is not None:
             g = self._gripper
             t = units.signed32(link.read_register(g.id, g.model.register("Present Position")))
@@ -392,7 +405,7 @@ class DynamixelBus:
                     log.error("torque off after a failed torque on: %s", exc)
             raise
         self._torque = True
-        self._last_goal = q
+        self._last_goal = q.tolist()
 
     # ------------------------------------------------------------------ gripper
 
@@ -426,10 +439,15 @@ class DynamixelBus:
             raise BusError(f"arm {self.arm.name!r} has no gripper")
         return self._gripper
 
-    def _send_goal_ticks(self, link: Link, goal: np.ndarray) -> None:
-        ticks = units.rad_to_ticks(goal[self._servo_joint], offset=self._servo_offset)
-        ticks = np.clip(ticks, self._servo_min, self._servo_max)
-        link.sync_write(116, 4, {s.id: _u32(t) for s, t in zip(self._joint_servos, ticks, strict=True)})
+    def _send_goals(self, link: Link, goal: Sequence[float]) -> None:
+        """One SYNC_WRITE of Goal Position: each servo gets its joint's ``goal`` (rad, finite), encoded as
+        ``round(2048 + offset + q / RAD_PER_TICK)`` (as ``units.rad_to_ticks``) and clipped to its tick limits."""
+        param: list[int] = []
+        for dxl_id, joint, zero, lo, hi in self._goal_plan:
+            t = round(zero + goal[joint] / units.RAD_PER_TICK)
+            t = (lo if t < lo else hi if t > hi else t) & 0xFFFFFFFF
+            param += (dxl_id, t & 0xFF, (t >> 8) & 0xFF, (t >> 16) & 0xFF, t >> 24)
+        link.sync_write_param(_GOAL_POSITION, 4, param)
 
     def _check_shadows(self, ticks: np.ndarray) -> None:
         """Refuse torque when a shadow disagrees with its primary: under torque the two would fight (overload)."""
@@ -450,6 +468,10 @@ class DynamixelBus:
             )
 
     def _read_joint_ticks(self, *, check_active: bool = True) -> np.ndarray:
+        """Present Position of every joint servo ``(n_joint_servos,) int64`` ticks, in ``_joint_servos`` order."""
+        return np.array(self._read_joint_tick_list(check_active=check_active), dtype=np.int64)
+
+    def _read_joint_tick_list(self, *, check_active: bool = True) -> list[int]:
         link = self._require_active() if check_active else self.link
         try:
             replies = link.group_read(self._position_requests, fast=self._use_fast, what="Present Position")
@@ -459,8 +481,9 @@ class DynamixelBus:
         if self._use_fast and link.fast_failures >= 3:
             log.warning("FAST_SYNC_READ failed 3 times in a row: using plain SYNC_READ from now on")
             self._use_fast = False
-        self._raise_alerts()
-        return np.array([units.signed32(int.from_bytes(replies[s.id].data, "little")) for s in self._joint_servos])
+        if link.alerts:
+            self._raise_alerts()
+        return [int.from_bytes(replies[dxl_id].data, "little", signed=True) for dxl_id in self._position_requests]
 
     def _raise_alerts(self) -> None:
         link = self.link
@@ -603,8 +626,8 @@ class DynamixelBus:
                 for s in self._joint_servos
             }
         link.sync_write(112, 4, {i: _u32(v) for i, v in values.items()})
-        self._send_goal_ticks(link, rest)
-        self._last_goal = rest
+        self._send_goals(link, rest.tolist())
+        self._last_goal = rest.tolist()
         start = self.clock.now()
         while True:
             err = float(np.max(np.abs(self._read_positions_unchecked() - rest)))

@@ -384,7 +384,7 @@ def run_ticks(
     clip_time = getattr(source, "clip_time", None)
     stop = stop if stop is not None else threading.Event()
     perf = time.perf_counter
-    minimum, maximum = np.minimum, np.maximum  # ufuncs: a third of np.clip's overhead on 6 values
+    array = np.array
     st = TickStats(rate=cfg.rate, dry_run=bus is None)
 
     status0 = bus.status() if bus is not None else None
@@ -398,8 +398,13 @@ def run_ticks(
     if q_cmd.shape != (arm.n_joints,):
         raise ValueError(f"Expected a start pose of shape ({arm.n_joints},), got {q_cmd.shape}")
     q_cmd = np.clip(q_cmd, lower, upper)
-    velocity = np.zeros(arm.n_joints)  # of the commanded pose, rad per slot
-    zero = velocity.copy()
+    # the tick's arithmetic runs on plain floats: on a handful of joints numpy's per-call overhead costs more
+    # than the math, and on a bus that time sits between the last reply and the next write
+    bounds = tuple(zip(lower.tolist(), upper.tolist(), strict=True))  # per joint (lo, hi) rad
+    vsteps = vstep.tolist()
+    q = q_cmd.tolist()  # the commanded pose as floats; q_cmd is its array, a new one every tick
+    zero = [0.0] * arm.n_joints
+    velocity = zero  # of the commanded pose, rad per slot
     if hasattr(source, "start"):
         source.start(q_cmd)
 
@@ -431,16 +436,24 @@ def run_ticks(
                 target, rotation, clamped = sample
                 # seed: where the commanded pose is heading at half its current speed (a full-speed
                 # prediction saves a few more sweeps but overshoots into joint-limit traps now and then)
-                seed = minimum(maximum(q_cmd + (_LEAD * elapsed) * velocity, lower), upper)
-                result = solve(target, seed, rotation)
-                delta = result.q - q_cmd
-                limit = vstep * elapsed
-                vlimited = bool((abs(delta) > limit).any())
-                if vlimited:
-                    delta = minimum(maximum(delta, -limit), limit)
-                q_next = minimum(maximum(q_cmd + delta, lower), upper)
-                velocity = (q_next - q_cmd) / elapsed  # rad per slot
-                q_cmd = q_next
+                lead = _LEAD * elapsed
+                seed = [x + lead * v for x, v in zip(q, velocity, strict=True)]
+                seed = [lo if x < lo else hi if x > hi else x for x, (lo, hi) in zip(seed, bounds, strict=True)]
+                result = solve(target, array(seed), rotation)
+                # each joint's step limited to vstep * elapsed, then the pose clamped to the limits
+                vlimited = False
+                q_next = []
+                for x, x0, s, (lo, hi) in zip(result.q.tolist(), q, vsteps, bounds, strict=True):
+                    d, m = x - x0, s * elapsed
+                    if d > m:
+                        d, vlimited = m, True
+                    elif d < -m:
+                        d, vlimited = -m, True
+                    y = x0 + d
+                    q_next.append(lo if y < lo else hi if y > hi else y)
+                velocity = [(x - x0) / elapsed for x, x0 in zip(q_next, q, strict=True)]  # rad per slot
+                q = q_next
+                q_cmd = array(q)
                 error, sweeps, converged = result.error, result.iterations, result.converged
             c1 = perf()
             retries = 0
