@@ -217,8 +217,8 @@ class DynamixelBus:
             (s.id, s.joint, units.CENTER_TICK + s.offset, s.min_tick, s.max_tick) for s in js
         )  #: per joint servo: ID, joint, tick of 0 rad, tick limits
         self._primary_plan = tuple(
-            (int(k), units.CENTER_TICK + js[k].offset) for k in self._primary_index
-        )  #: per joint: index of its primary in the joint servos, tick of 0 rad
+            (js[k].id, units.CENTER_TICK + js[k].offset) for k in self._primary_index
+        )  #: per joint: its primary servo's ID and tick of 0 rad
 
         self._link: Link | None = None
         self._last_link: Link | None = None  #: keeps the counters readable after close
@@ -335,9 +335,14 @@ class DynamixelBus:
         Alert bit set is reported by its hardware error names (or rebooted and configured again with
         ``recover=True``).
         """
-        ticks = self._read_joint_tick_list()
+        replies = self._read_joint_replies()
         self._ticks += 1
-        return np.array([(ticks[k] - zero) * units.RAD_PER_TICK for k, zero in self._primary_plan])
+        return np.array(
+            [
+                (int.from_bytes(replies[dxl_id].data, "little", signed=True) - zero) * units.RAD_PER_TICK
+                for dxl_id, zero in self._primary_plan
+            ]
+        )
 
     def read_state(self) -> ServoState:
         """Health of every servo (gripper included) in one group read of Present Load/Current .. Temperature.
@@ -469,9 +474,14 @@ class DynamixelBus:
 
     def _read_joint_ticks(self, *, check_active: bool = True) -> np.ndarray:
         """Present Position of every joint servo ``(n_joint_servos,) int64`` ticks, in ``_joint_servos`` order."""
-        return np.array(self._read_joint_tick_list(check_active=check_active), dtype=np.int64)
+        replies = self._read_joint_replies(check_active=check_active)
+        return np.array(
+            [int.from_bytes(replies[dxl_id].data, "little", signed=True) for dxl_id in self._position_requests],
+            dtype=np.int64,
+        )
 
-    def _read_joint_tick_list(self, *, check_active: bool = True) -> list[int]:
+    def _read_joint_replies(self, *, check_active: bool = True) -> dict[int, Reply]:
+        """Present Position replies of every joint servo (shadows too, so their alerts are seen), by ID."""
         link = self._require_active() if check_active else self.link
         try:
             replies = link.group_read(self._position_requests, fast=self._use_fast, what="Present Position")
@@ -483,7 +493,7 @@ class DynamixelBus:
             self._use_fast = False
         if link.alerts:
             self._raise_alerts()
-        return [int.from_bytes(replies[dxl_id].data, "little", signed=True) for dxl_id in self._position_requests]
+        return replies
 
     def _raise_alerts(self) -> None:
         link = self.link

@@ -158,6 +158,7 @@ class Serial(SerialBase):
 
     def __init__(self, *args: object, **kwargs: object):
         self.bus: SimBus | None = None
+        self._virtual = False  #: the bus runs on a VirtualClock: waiting for a reply advances it
         self._rx = bytearray()
         self._pending: deque[Reply] = deque()
         super().__init__(*args, **kwargs)  # type: ignore[arg-type]
@@ -174,6 +175,7 @@ class Serial(SerialBase):
         except (RetargetError, KeyError, ValueError) as exc:
             raise SerialException(f"could not open port {self._port!r}: {exc}") from exc
         self.bus.reset()
+        self._virtual = isinstance(self.bus.clock, VirtualClock)
         self.is_open = True
         self._reconfigure_port()
         self.reset_input_buffer()
@@ -193,10 +195,6 @@ class Serial(SerialBase):
             self.bus.line_baud = int(self._baudrate)
 
     # ------------------------------------------------------------------ data
-
-    @property
-    def _virtual(self) -> bool:
-        return self.bus is not None and isinstance(self.bus.clock, VirtualClock)
 
     def _collect(self) -> None:
         """Move every reply whose last byte is on the wire by now into the receive buffer."""
@@ -220,6 +218,15 @@ class Serial(SerialBase):
         if not self.is_open or self.bus is None:
             raise PortNotOpenError()
         timeout = self._timeout
+        if timeout == 0 and not self._virtual:  # dynamixel-sdk busy-polls this way: keep each poll short
+            if self._pending:
+                self._collect()
+            rx = self._rx
+            if not rx:
+                return b""
+            out = bytes(rx[:size])
+            del rx[:size]
+            return out
         deadline = None if timeout is None else time.monotonic() + timeout
         out = bytearray()
         while True:
