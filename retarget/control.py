@@ -289,7 +289,8 @@ class ClipSource:
             else:  # after a skip only this slot (an overrunning loop skips every tick)
                 one, moved = self.loop.targets.at(self.loop.clip_time(i))
                 self._block0, self._block1 = i, i + 1
-                self._positions, self._clamped = one[None], (moved,)
+                self._positions, self._clamped = (one,), (moved,)  # type: ignore[assignment]
+                return one, None, moved
         j = i - self._block0
         rotations = self._rotations
         return self._positions[j], None if rotations is None else rotations[j], bool(self._clamped[j])
@@ -437,8 +438,10 @@ def run_ticks(
                 # seed: where the commanded pose is heading at half its current speed (a full-speed
                 # prediction saves a few more sweeps but overshoots into joint-limit traps now and then)
                 lead = _LEAD * elapsed
-                seed = [x + lead * v for x, v in zip(q, velocity, strict=True)]
-                seed = [lo if x < lo else hi if x > hi else x for x, (lo, hi) in zip(seed, bounds, strict=True)]
+                seed = [
+                    lo if (x := a + lead * v) < lo else hi if x > hi else x
+                    for a, v, (lo, hi) in zip(q, velocity, bounds, strict=True)
+                ]
                 result = solve(target, array(seed), rotation)
                 # each joint's step limited to vstep * elapsed, then the pose clamped to the limits
                 vlimited = False
