@@ -1,11 +1,21 @@
 """Forward kinematics of a BVH skeleton over all frames at once.
 
-The work is laid out for numpy: joints are visited level by level (all
-joints at one depth together) and 3x3 rotations are stored entry-major,
-``(3, 3, k, n_frames)``, so each level is one elementwise composition of its
-local rotations and one ``einsum`` with its parents' rotations, on long
-contiguous rows, instead of tens of thousands of tiny 3x3 matmuls.  Only the
-previous level's world rotations are kept, all of them only when asked for.
+The work is laid out for numpy, with frames on the last (contiguous) axis:
+
+* every 3x3 rotation is stored entry-major, ``(3, 3, k, n_frames)``, and
+  positions coordinate-major, ``(3, n_joints, n_frames)``, so each numpy
+  call works on long contiguous rows;
+* the local rotations of all joints are built in one go: one
+  :func:`~retarget.rotations.cos_sin_degrees` per group of joints sharing a
+  rotation order (usually one group), then the Euler product entry by entry;
+* joints are then visited level by level (all joints at one depth together):
+  per level, one gather of the parents' world rotations and one ``einsum``
+  each for positions and world rotations.
+
+Only joints that need a world rotation get one: those with child joints, with
+End Sites (when ``end_sites``), or all (when ``rotations``).  Rotation rows are
+in breadth-first order with, inside each level, the rotating joints first, so
+a level's rows are one slice of the buffers.
 
 Convention (see :mod:`retarget.motion`): ``R_world[j] = R_world[parent] @
 R_local[j]``, ``p_world[j] = p_world[parent] + R_world[parent] @ t_local[j]``,
@@ -20,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from retarget.rotations import AXIS_INDEX, compose_entries
+from retarget.rotations import AXIS_INDEX, compose_entries, cos_sin_degrees
 
 
 @dataclass(frozen=True)
@@ -35,6 +45,24 @@ class Pose:
     positions: np.ndarray
     end_sites: np.ndarray | None
     rotations: np.ndarray | None
+
+
+#: Rotation rows times frames per block: the temporaries of a block (~64 KB each) stay in cache and are recycled
+#: by the allocator instead of being page-faulted in afresh, which costs more than the arithmetic.
+BLOCK_ELEMENTS = 1 << 13
+
+
+@dataclass(frozen=True)
+class _Level:
+    """The joints at one depth of the skeleton, rotating ones first, and where their inputs are."""
+
+    joints: np.ndarray  #: (k,) joint indices
+    rows: slice  #: rotation rows of the first ``n_turning`` of them
+    n_turning: int
+    parent_rows: slice | np.ndarray | None  #: parents' rotation rows (a 1-row slice broadcasts); None for roots
+    parent_joints: slice | np.ndarray | None  #: parents' joint indices, likewise
+    offsets: np.ndarray  #: (3, k, 1) OFFSETs
+    moving: tuple[tuple[int, int, int], ...]  #: position channels: (axis, slot in joints, column in channels)
 
 
 def forward_kinematics(
@@ -60,106 +88,153 @@ def forward_kinematics(
     ``rotations``).  Without ``end_sites``, ``Pose.end_sites`` is None.
     """
     parents = np.asarray(parents, dtype=np.intp)
+    offsets = np.asarray(offsets, dtype=np.float64).reshape(-1, 3)
     nj, n = len(parents), channels.shape[0]
-    order, level_bounds = _breadth_first(parents)
-    columns = channels.T  # (C, n) view
-    positions = np.empty((n, nj, 3))
-    all_rot = np.empty((n, nj, 3, 3)) if rotations else None
     site_parents = np.asarray(end_site_parents, dtype=np.intp) if end_sites else np.zeros(0, dtype=np.intp)
-    site_offsets = np.asarray(end_site_offsets, dtype=np.float64).reshape(-1, 3)
-    sites = np.empty((n, site_parents.size, 3)) if end_sites else None
-    needs_rotation = np.ones(nj, dtype=bool) if rotations else np.zeros(nj, dtype=bool)
+    site_offsets = np.asarray(end_site_offsets, dtype=np.float64).reshape(-1, 3)[: site_parents.size]
+    needs_rotation = np.full(nj, rotations, dtype=bool)
     needs_rotation[parents[parents >= 0]] = True
     needs_rotation[site_parents] = True
-    slot = np.zeros(nj, dtype=np.intp)  # a joint's row in its level's rotation rows
-    prev_rot = prev_pos = np.zeros(0)
-    for a, b in level_bounds:
-        joints = order[a:b]
-        turning = joints[needs_rotation[joints]]
-        slot[turning] = np.arange(turning.size)
-        trans = _translations(joints, offsets, channel_names, first_columns, columns)  # (3, k, 1 or n)
-        local = _local_rotations(turning, channel_names, first_columns, columns)  # (3, 3, k', n)
-        if parents[joints[0]] < 0:  # the roots, alone in the first level
-            pos = np.broadcast_to(trans, (3, b - a, n))
-            world = local
-        else:
-            rows = slot[parents[joints]]
-            single = bool(np.all(rows == rows[0]))
-            pick = slice(int(rows[0]), int(rows[0]) + 1) if single else rows
-            # p = p_parent + R_parent @ t;  R = R_parent @ R_local  (3x3 over the leading axes, rows broadcast)
-            pos = np.einsum("ij...,j...->i...", prev_rot[:, :, pick], trans) + prev_pos[:, pick]
-            if turning.size < joints.size and not single:
-                pick = slot[parents[turning]]
-            world = np.einsum("ij...,jl...->il...", prev_rot[:, :, pick], local)
-        for i in range(3):
-            positions[:, joints, i] = pos[i].T
-            if all_rot is not None:
-                for c in range(3):
-                    all_rot[:, joints, i, c] = world[i, c].T
-        if sites is not None:
-            for e in np.flatnonzero(np.isin(site_parents, joints)):
-                r, row = slot[site_parents[e]], int(np.flatnonzero(joints == site_parents[e])[0])
-                sites[:, e, :] = (pos[:, row] + np.einsum("ijn,j->in", world[:, :, r], site_offsets[e])).T
-        prev_rot, prev_pos = world, pos[:, needs_rotation[joints]]
+    levels, turning = _plan(parents, offsets, channel_names, first_columns, needs_rotation)
+    row = np.full(nj, -1, dtype=np.intp)  # a joint's rotation row
+    row[turning] = np.arange(turning.size)
+    groups = _rotation_groups(turning, channel_names, first_columns)
+
+    positions = np.empty((n, nj, 3))
+    sites = np.empty((n, site_parents.size, 3)) if end_sites else None
+    all_rot = np.empty((n, nj, 3, 3)) if rotations else None
+    step = max(16, BLOCK_ELEMENTS // max(turning.size, 1))
+    local = np.empty((3, 3, turning.size, min(step, n)))  # block buffers, reused: rows x frames of the block
+    world = np.empty_like(local)
+    pos = np.empty((3, nj, min(step, n)))
+    for f0 in range(0, n, step):
+        f1 = min(f0 + step, n)
+        columns = channels[f0:f1].T  # (C, b) view
+        b = f1 - f0
+        _local_rotations(groups, columns, out=local[..., :b])
+        _block(levels, local[..., :b], columns, world[..., :b], pos[..., :b])
+        positions[f0:f1] = pos[..., :b].transpose(2, 1, 0)
+        if sites is not None and site_parents.size:
+            # p_site = p_parent + R_parent @ offset
+            at = np.einsum("ij...,j...->i...", world[:, :, row[site_parents], :b], site_offsets.T[:, :, None])
+            at += pos[:, site_parents, :b]
+            sites[f0:f1] = at.transpose(2, 1, 0)
+        if all_rot is not None:  # every joint turns
+            all_rot[f0:f1] = world[:, :, row, :b].transpose(3, 2, 0, 1)
     return Pose(positions=positions, end_sites=sites, rotations=all_rot)
 
 
-def _breadth_first(parents: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int]]]:
-    """Joint indices in breadth-first order (roots first) and the ``[a, b)`` slice of each depth in it."""
+def _block(levels: list[_Level], local: np.ndarray, columns: np.ndarray, world: np.ndarray, pos: np.ndarray) -> None:
+    """World rotations ``(3, 3, K, b)`` and positions ``(3, J, b)`` of one block of frames, level by level, from
+    the local rotations ``(3, 3, K, b)`` and the block's ``columns`` ``(C, b)``."""
+    for level in levels:
+        trans = level.offsets  # (3, k, 1), or (3, k, b) with position channels
+        if level.moving:
+            trans = np.repeat(trans, columns.shape[1], axis=2)
+            for axis, slot, col in level.moving:
+                trans[axis, slot] = columns[col]
+        rows = level.rows
+        if level.parent_rows is None:  # the roots
+            pos[:, level.joints] = trans
+            world[:, :, rows] = local[:, :, rows]
+            continue
+        parent_rot = world[:, :, level.parent_rows]  # (3, 3, k or 1, b)
+        # p = p_parent + R_parent @ t;  R = R_parent @ R_local  (3x3 over the leading axes, rows broadcast)
+        at = np.einsum("ij...,j...->i...", parent_rot, trans)
+        at += pos[:, level.parent_joints]
+        pos[:, level.joints] = at
+        if level.n_turning:
+            np.einsum(
+                "ij...,jl...->il...", parent_rot[:, :, : level.n_turning], local[:, :, rows], out=world[:, :, rows]
+            )
+
+
+def _plan(
+    parents: np.ndarray,
+    offsets: np.ndarray,
+    channel_names: Sequence[Sequence[str]],
+    first_columns: Sequence[int],
+    needs_rotation: np.ndarray,
+) -> tuple[list[_Level], np.ndarray]:
+    """The levels (breadth-first, roots first; in each level the rotating joints first, then file order) and the
+    rotating joints in rotation-row order."""
     depth = np.zeros(len(parents), dtype=np.intp)
     for j, p in enumerate(parents):
         depth[j] = depth[p] + 1 if p >= 0 else 0
-    order = np.argsort(depth, kind="stable")
+    order = np.lexsort((~needs_rotation, depth))  # by depth, then rotating first; stable: file order last
+    turning = order[needs_rotation[order]]
+    row = np.full(len(parents), -1, dtype=np.intp)
+    row[turning] = np.arange(turning.size)
     counts = np.bincount(depth) if len(depth) else np.zeros(0, dtype=np.intp)
-    stops = np.cumsum(counts)
-    return order, [(int(s - c), int(s)) for s, c in zip(stops, counts, strict=True) if c]
+    levels, first_row = [], 0
+    for stop, count in zip(np.cumsum(counts), counts, strict=True):
+        joints = order[stop - count : stop]
+        n_turning = int(np.count_nonzero(needs_rotation[joints]))
+        up = parents[joints]
+        moving = tuple(
+            (AXIS_INDEX[name[0]], slot, first_columns[j] + i)
+            for slot, j in enumerate(joints)
+            for i, name in enumerate(channel_names[j])
+            if name.endswith("position")
+        )
+        levels.append(
+            _Level(
+                joints=joints,
+                rows=slice(first_row, first_row + n_turning),
+                n_turning=n_turning,
+                parent_rows=None if up[0] < 0 else _index(row[up]),
+                parent_joints=None if up[0] < 0 else _index(up),
+                offsets=offsets[joints].T[:, :, None],
+                moving=moving,
+            )
+        )
+        first_row += n_turning
+    return levels, turning
 
 
-def _local_rotations(
-    joints: np.ndarray, channel_names: Sequence[Sequence[str]], first_columns: Sequence[int], columns: np.ndarray
-) -> np.ndarray:
-    """``(3, 3, k, n)`` local rotations of ``joints``."""
-    k, n = len(joints), columns.shape[1]
-    out = np.empty((3, 3, k, n))
-    orders: dict[str, list[int]] = {}
-    cols: list[list[int]] = []
+def _index(rows: np.ndarray) -> slice | np.ndarray:
+    """``rows`` as an index on one axis: a 1-row slice when all are the same row (it broadcasts), a slice when
+    they are consecutive (a view), else the array itself (a copy)."""
+    first = int(rows[0])
+    if (rows == first).all():
+        return slice(first, first + 1)
+    if (np.diff(rows) == 1).all():
+        return slice(first, first + rows.size)
+    return rows
+
+
+def _rotation_groups(
+    joints: np.ndarray, channel_names: Sequence[Sequence[str]], first_columns: Sequence[int]
+) -> list[tuple[list[int], slice | np.ndarray, np.ndarray]]:
+    """``joints`` grouped by rotation order: per group its axes, its rows in ``joints`` and its angle columns
+    ``(m, k')`` (one row per rotation channel)."""
+    groups: dict[str, tuple[list[int], list[list[int]]]] = {}
     for r, j in enumerate(joints):
         names = channel_names[j]
         picked = [i for i, name in enumerate(names) if name.endswith("rotation")]
-        orders.setdefault("".join(names[i][0] for i in picked), []).append(r)
+        rows, cols = groups.setdefault("".join(names[i][0] for i in picked), ([], []))
+        rows.append(r)
         cols.append([first_columns[j] + i for i in picked])
-    for axes_text, rows in orders.items():
-        where = slice(None) if len(rows) == k else np.array(rows)
-        if not axes_text:
+    return [
+        (
+            [AXIS_INDEX[a] for a in axes],
+            slice(None) if len(rows) == len(joints) else np.array(rows),
+            np.array(cols, dtype=np.intp).reshape(len(rows), len(axes)).T,
+        )
+        for axes, (rows, cols) in groups.items()
+    ]
+
+
+def _local_rotations(groups: list, columns: np.ndarray, *, out: np.ndarray) -> None:
+    """Write into ``out`` ``(3, 3, k, b)`` the local rotations of the grouped joints from ``columns`` ``(C, b)``:
+    one trigonometry pass and one Euler product per rotation order."""
+    for axes, where, cols in groups:
+        if not axes:
             out[:, :, where] = np.eye(3)[:, :, None, None]
             continue
-        angles = np.radians(columns[np.array([cols[r] for r in rows]).T])  # (m, k, n)
-        entries = compose_entries([AXIS_INDEX[a] for a in axes_text], np.cos(angles), np.sin(angles))
+        cos, sin = cos_sin_degrees(columns[cols])  # (m, k', b) each
+        entries = compose_entries(axes, cos, sin)
         for i in range(3):
             for c in range(3):
                 e = entries[i][c]
                 out[i, c, where] = 0.0 if e is None else e
-    return out
-
-
-def _translations(
-    joints: np.ndarray,
-    offsets: np.ndarray,
-    channel_names: Sequence[Sequence[str]],
-    first_columns: Sequence[int],
-    columns: np.ndarray,
-) -> np.ndarray:
-    """``(3, k, 1)`` OFFSETs of ``joints``, or ``(3, k, n)`` when some have position channels."""
-    off = np.asarray(offsets, dtype=np.float64)[joints].T[:, :, None]  # (3, k, 1)
-    moving = [
-        (slot, first_columns[j] + i, name)
-        for slot, j in enumerate(joints)
-        for i, name in enumerate(channel_names[j])
-        if name.endswith("position")
-    ]
-    if not moving:
-        return off
-    out = np.repeat(off, columns.shape[1], axis=2)
-    for slot, col, name in moving:
-        out[AXIS_INDEX[name[0]], slot] = columns[col]
-    return out

@@ -5,19 +5,24 @@ clip on a slow machine.  Here all tokens are decoded at once with SWAR
 arithmetic on 64-bit words:
 
 1. token boundaries and dot positions come from whole-block byte compares;
-2. each token is anchored at its dot (or its end if it has none): the 8
-   bytes before the dot hold the integer digits, the 8 after it the
-   fraction digits; bytes outside the token are masked to zero;
+2. each token is anchored at its dot (or its end if it has none) and the 16
+   bytes around it are fetched in one gather: the low word holds the 7 bytes
+   before the dot (the integer digits) and the dot itself, the high word the
+   8 bytes after it (the fraction digits); bytes outside the token, and the
+   dot, are masked to zero;
 3. both words are checked to be all digits and folded into integers, 8
-   digits at a time (the fast_float/simdjson trick), giving
-   ``m = int_part * 10**8 + fraction * 10**(8 - f)``;
+   digits at a time (the fast_float/simdjson trick): the low word gives
+   ``int_part * 10`` (the masked dot is a zero units digit), the high one
+   ``fraction * 10**(8 - f)``, so ``m = low * 10**7 + high = int_part * 10**8
+   + fraction * 10**(8 - f)``;
 4. ``value = m / 1e8``.
 
 Exactness: with at most 7 integer and 8 fraction digits, ``m < 10**15 <
 2**53`` is exact as a double and ``m / 1e8`` is one correctly rounded IEEE
 division of the exact decimal value, so every result is bit-identical to
 ``float(token)``.  Anything else (exponents, longer numbers, ``nan``, stray
-characters, a lone ``-``) is flagged in ``needs_slow`` for the caller.
+characters, a lone ``-``, a token with two dots) is flagged in ``needs_slow``
+for the caller.
 
 Callers feed it ~100 KB windows (see ``retarget.bvh._read_frames``) so the
 temporaries stay in cache and below the allocator's mmap threshold: on a
@@ -36,21 +41,34 @@ _SEVENTY_SIXES = _U(0x7676767676767676)
 _HIGH = _U(0x8080808080808080)
 _K1, _K2, _K3 = _U(2561), _U(6553601), _U(42949672960001)
 _M2, _M3 = _U(0x00FF00FF00FF00FF), _U(0x0000FFFF0000FFFF)
-_E8 = _U(100_000_000)
 _0, _8, _16, _32 = (_U(v) for v in (0, 8, 16, 32))
 
-# Per-token lookup tables.  ``_SIGNED``/``_DIVISOR`` by first byte; ``_KEEP_HIGH[k]`` keeps the top k bytes of a
-# word (the k digits before a dot), ``_KEEP_LOW[k]`` the low k bytes (the k digits after it); ``_SLOW_CASE`` by
-# ``int_len * 11 + frac_len + 1`` (int_len 0..8, frac_len -1..9): more than 7 + 8 digits, or none at all.
+# Per-token lookup tables.  ``_SIGNED``/``_DIVISOR`` by first byte.  The others by the token's shape, ``case =
+# (int_len + 1) * 12 + (tail + 1)``, with ``int_len`` the digits before the dot clipped to -1..8 and ``tail`` the
+# bytes from the dot to the token's end clipped to -1..10 (0: no dot; 1 + the number of fraction digits).  -1 in
+# either means the dot is not inside the token (a token with two dots and one with none): slow.
 _SIGNED = np.zeros(256, dtype=np.intp)
 _SIGNED[[43, 45]] = 1
 _DIVISOR = np.full(256, 1e8)
 _DIVISOR[45] = -1e8
-_KEEP_HIGH = np.array([0] + [((1 << (8 * k)) - 1) << (8 * (8 - k)) for k in range(1, 9)], dtype=np.uint64)
-_KEEP_LOW = np.array([(1 << (8 * k)) - 1 for k in range(10)], dtype=object).clip(max=(1 << 64) - 1).astype(np.uint64)
-_SLOW_CASE = np.array([i == 8 or f == 9 or (i == 0 and f <= 0) for i in range(9) for f in range(-1, 10)])
+_INT_LENS = np.arange(-1, 9)
+_TAILS = np.arange(-1, 11)
+_SLOW_CASE = np.array(
+    [i < 0 or i > 7 or t < 0 or t > 9 or (i == 0 and t <= 1) for i in _INT_LENS for t in _TAILS], dtype=bool
+)
+# per case, the masks of the low word (the top ``int_len`` bytes below the dot, which is byte 7) and of the high
+# word (the low ``tail - 1`` bytes)
+_KEEP = np.array(
+    [
+        [((1 << (8 * i)) - 1) << (8 * (7 - i)) if 0 < i <= 7 else 0, (1 << (8 * (t - 1))) - 1 if 1 < t <= 9 else 0]
+        for i in _INT_LENS
+        for t in _TAILS
+    ],
+    dtype=np.uint64,
+)
+_E7 = _U(10_000_000)
 
-CHUNK = 8192  #: tokens per vector step
+CHUNK = 4096  #: tokens per vector step (its 16-byte gather stays below the 128 KB mmap threshold)
 PAD = 16  #: bytes of padding before the block (and after it) that :func:`parse_tokens` reads
 
 
@@ -97,16 +115,23 @@ def _digits(words: np.ndarray, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return v, bad
 
 
-def _anchors(b: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-    """Per token, the offset of its dot (its end when it has none), and whether it has several dots (None: none
-    has)."""
+def _anchors(b: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """Per token, the offset of a dot (its end when it has none).
+
+    The common case, as many dots as tokens, pairs them in order without
+    checking: a dot paired with the wrong token lies outside it, which
+    :func:`parse_tokens` flags as slow.  Otherwise a token with several dots
+    is anchored at the byte before its start (flagged the same way).
+    """
     dots = np.flatnonzero(b == 46)
-    if dots.size == starts.size and bool(((dots >= starts) & (dots < ends)).all()):
-        return dots, None
+    if dots.size == starts.size:
+        return dots
     owner = np.searchsorted(starts, dots, side="right") - 1  # a '.' is never whitespace: always inside a token
     anchors = ends.copy()
     anchors[owner] = dots
-    return anchors, np.bincount(owner, minlength=starts.size) > 1
+    several = np.flatnonzero(np.bincount(owner, minlength=starts.size) > 1)
+    anchors[several] = starts[several] - 1  # int_len < 0: slow (and still 8 bytes into the buffer's margin)
+    return anchors
 
 
 def parse_tokens(buf: np.ndarray, base: int, starts: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -125,27 +150,30 @@ def parse_tokens(buf: np.ndarray, base: int, starts: np.ndarray, ends: np.ndarra
     if base < 8 or buf.size < base + int(ends[-1]) + PAD:
         raise ValueError(f"Expected 8 bytes before and {PAD} after the tokens, got {base} and {buf.size - base}")
     b = buf[base : base + int(ends[-1])]
-    anchors, several_dots = _anchors(b, starts, ends)
+    anchors = _anchors(b, starts, ends)
     first = b[starts]
-    int_len = np.minimum(anchors - starts - _SIGNED.take(first), 8)  # digits before the dot (8: too many)
-    frac_len = np.minimum(ends - anchors - 1, 9)  # digits after it (-1: no dot; 9: too many)
-    case = int_len * 11 + frac_len + 1
+    int_len = anchors - starts
+    int_len -= _SIGNED.take(first)
+    np.clip(int_len, -1, 8, out=int_len)
+    tail = ends - anchors
+    np.clip(tail, -1, 10, out=tail)
+    int_len += 1
+    int_len *= _TAILS.size
+    int_len += tail
+    int_len += 1
+    case = int_len
     _SLOW_CASE.take(case, out=needs_slow)
-    if several_dots is not None:
-        needs_slow |= several_dots
     divisor = _DIVISOR.take(first)  # -1e8 after a minus sign: an exact sign flip of the rounded quotient
-    keep_i = _KEEP_HIGH.take(int_len)
-    keep_f = _KEEP_LOW.take(np.maximum(frac_len, 0))
-    words = np.ndarray((buf.size - 7,), dtype="<u8", buffer=buf, strides=(1,))
-    at_i = anchors + (base - 8)
-    at_f = anchors + (base + 1)
+    # the 16 bytes from 7 before each dot: two little-endian words per token
+    pairs = np.ndarray((buf.size - 15,), dtype="V16", buffer=buf, strides=(1,))
+    at = anchors + (base - 7)
     for s in range(0, n, CHUNK):
         part = slice(s, s + CHUNK)
-        vi, bad = _digits(words[at_i[part]], keep_i[part])
-        vf, bad_f = _digits(words[at_f[part]], keep_f[part])
-        bad |= bad_f
-        vi *= _E8
-        vi += vf
-        np.divide(vi, divisor[part], out=values[part])
+        words = pairs[at[part]].view("<u8").reshape(-1, 2)  # indexing, not take(): take copies a strided source
+        v, bad = _digits(words, _KEEP.take(case[part], axis=0))
+        bad = bad[:, 0] | bad[:, 1]
+        m = v[:, 0] * _E7
+        m += v[:, 1]
+        np.divide(m, divisor[part], out=values[part])
         needs_slow[part] |= bad != _0
     return values, needs_slow

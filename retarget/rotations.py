@@ -91,6 +91,69 @@ def compose_cos_sin(
     return out
 
 
+# fdlibm's __kernel_sin / __kernel_cos minimax coefficients (|x| <= pi/4, error < 1 ulp).
+_S = (-1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04,
+      2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10)  # fmt: skip
+_C = (4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05,
+      -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.13596475577881948265e-11)  # fmt: skip
+
+_QUARTER_COS = np.array([1.0, 0.0, -1.0, 0.0])  # cos(90 q degrees)
+_QUARTER_SIN = np.array([0.0, -1.0, 0.0, 1.0])  # -sin(90 q degrees)
+
+
+def cos_sin_degrees(degrees: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(cos, sin)`` of ``degrees`` ``(...)``, each ``(...)`` float64, in one pass.
+
+    Equal to ``np.cos(np.radians(degrees))`` (and sin) to about 1 ulp, and
+    about 3x faster where numpy's float64 ``cos``/``sin`` call libm per element:
+    the angle is reduced exactly in degrees to ``q * 90 + r`` with ``|r| <=
+    45`` (``x - 90 q`` is exact for ``|x| < 2**52``), both functions come from
+    fdlibm's polynomials on ``r`` in radians, and the quadrant ``q`` swaps and
+    negates them.  Non-finite angles give NaN, as ``np.cos`` does.
+    """
+    x = np.asarray(degrees, dtype=np.float64)
+    q = np.rint(x * (1.0 / 90.0))  # nearest quarter turn; a misrounded tie only leaves |r| a hair above 45
+    r = q * -90.0
+    with np.errstate(invalid="ignore"):  # inf - inf: NaN, silently (np.cos warns)
+        r += x
+    r *= np.pi / 180.0
+    z = r * r
+    # sin r = r + r z (S1 + z (S2 + ... + z S6));  cos r = 1 - (z/2 - z^2 (C1 + z (C2 + ... + z C6)))
+    sin = _horner(z, _S[1:])
+    sin *= z
+    sin += _S[0]
+    sin *= z
+    sin *= r
+    sin += r
+    cos = _horner(z, _C)
+    cos *= z
+    cos -= 0.5
+    cos *= z
+    cos += 1.0
+    with np.errstate(invalid="ignore"):  # a NaN quadrant casts to anything: r is NaN there anyway
+        quadrant = q.astype(np.intp) & 3
+    # cos x = (c, -s, -c, s)[quadrant] = c a + s b and sin x = (s, c, -s, -c)[quadrant] = s a - c b, with a, b
+    # in {-1, 0, 1}: exact, and cheaper than masked selects.
+    a = _QUARTER_COS.take(quadrant)
+    b = _QUARTER_SIN.take(quadrant)
+    cos_out = cos * a
+    cos_out += sin * b
+    sin *= a
+    cos *= b
+    sin -= cos
+    return cos_out, sin
+
+
+def _horner(z: np.ndarray, coefficients: Sequence[float]) -> np.ndarray:
+    """``c0 + z (c1 + z (c2 + ...))`` elementwise, in one fresh array."""
+    out = z * coefficients[-1]
+    for c in coefficients[-2:0:-1]:
+        out += c
+        out *= z
+    out += coefficients[0]
+    return out
+
+
 def compose_entries(axes: Sequence[int], cos: Sequence[np.ndarray], sin: Sequence[np.ndarray]) -> list[list]:
     """The 3x3 product of :func:`compose_cos_sin` as nested lists of entries: ``None`` (zero), ``1.0`` or arrays.
 
