@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import logging
 import math
+import struct
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from types import TracebackType
@@ -212,10 +213,12 @@ class DynamixelBus:
         self._max_step = None if self.max_step is None else tuple(self.max_step.tolist())
         # the tick path (write_goals, read_positions) works on plain floats: numpy costs more than the math
         # on a handful of values, and every microsecond there is a microsecond the wire sits idle
+        self._goal_shape = (arm.n_joints,)
         self._clamp = tuple(zip(self.lower.tolist(), self.upper.tolist(), strict=True))  #: per joint (lo, hi) rad
         self._goal_plan = tuple(
             (s.id, s.joint, units.CENTER_TICK + s.offset, s.min_tick, s.max_tick) for s in js
         )  #: per joint servo: ID, joint, tick of 0 rad, tick limits
+        self._goal_packing = struct.Struct("<" + "Bi" * len(js))  #: SYNC_WRITE params: ID, signed 4-byte LE goal
         self._primary_plan = tuple(
             (js[k].id, units.CENTER_TICK + js[k].offset) for k in self._primary_index
         )  #: per joint: its primary servo's ID and tick of 0 rad
@@ -362,7 +365,7 @@ class DynamixelBus:
         """
         link = self._require_active()
         q = np.asarray(q, dtype=np.float64)
-        if q.shape != (self.arm.n_joints,):
+        if q.shape != self._goal_shape:
             raise ValueError(f"Expected goals of shape ({self.arm.n_joints},) in radians, got shape {q.shape}")
         values = q.tolist()
         if not all(map(math.isfinite, values)):
@@ -447,12 +450,11 @@ class DynamixelBus:
     def _send_goals(self, link: Link, goal: Sequence[float]) -> None:
         """One SYNC_WRITE of Goal Position: each servo gets its joint's ``goal`` (rad, finite), encoded as
         ``round(2048 + offset + q / RAD_PER_TICK)`` (as ``units.rad_to_ticks``) and clipped to its tick limits."""
-        param: list[int] = []
+        values: list[int] = []
         for dxl_id, joint, zero, lo, hi in self._goal_plan:
             t = round(zero + goal[joint] / units.RAD_PER_TICK)
-            t = (lo if t < lo else hi if t > hi else t) & 0xFFFFFFFF
-            param += (dxl_id, t & 0xFF, (t >> 8) & 0xFF, (t >> 16) & 0xFF, t >> 24)
-        link.sync_write_param(_GOAL_POSITION, 4, param)
+            values += (dxl_id, lo if t < lo else hi if t > hi else t)
+        link.sync_write_param(_GOAL_POSITION, 4, list(self._goal_packing.pack(*values)))
 
     def _check_shadows(self, ticks: np.ndarray) -> None:
         """Refuse torque when a shadow disagrees with its primary: under torque the two would fight (overload)."""
