@@ -49,7 +49,7 @@ class Pose:
 
 #: Rotation rows times frames per block: the temporaries of a block (~64 KB each) stay in cache and are recycled
 #: by the allocator instead of being page-faulted in afresh, which costs more than the arithmetic.
-BLOCK_ELEMENTS = 1 << 13
+BLOCK_ELEMENTS = 1 << 12
 
 
 @dataclass(frozen=True)

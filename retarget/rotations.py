@@ -112,11 +112,19 @@ def cos_sin_degrees(degrees: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     negates them.  Non-finite angles give NaN, as ``np.cos`` does.
     """
     x = np.asarray(degrees, dtype=np.float64)
-    q = np.rint(x * (1.0 / 90.0))  # nearest quarter turn; a misrounded tie only leaves |r| a hair above 45
-    r = q * -90.0
+    r = x * (1.0 / 90.0)
+    np.rint(r, out=r)  # q, the nearest quarter turn; a misrounded tie only leaves |x - 90 q| a hair above 45
+    with np.errstate(invalid="ignore"):  # a NaN quadrant casts to anything: r is NaN there anyway
+        quadrant = r.astype(np.intp)
+    quadrant &= 3
+    # cos x = (c, -s, -c, s)[quadrant] = c a + s b and sin x = (s, c, -s, -c)[quadrant] = s a - c b, with a, b
+    # in {-1, 0, 1}: exact, and cheaper than masked selects.
+    a = _QUARTER_COS.take(quadrant)
+    b = _QUARTER_SIN.take(quadrant)
+    r *= -90.0
     with np.errstate(invalid="ignore"):  # inf - inf: NaN, silently (np.cos warns)
         r += x
-    r *= np.pi / 180.0
+    r *= np.pi / 180.0  # r = x - 90 q, in radians: |r| <= pi/4
     z = r * r
     # sin r = r + r z (S1 + z (S2 + ... + z S6));  cos r = 1 - (z/2 - z^2 (C1 + z (C2 + ... + z C6)))
     sin = _horner(z, _S[1:])
@@ -130,18 +138,13 @@ def cos_sin_degrees(degrees: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     cos -= 0.5
     cos *= z
     cos += 1.0
-    with np.errstate(invalid="ignore"):  # a NaN quadrant casts to anything: r is NaN there anyway
-        quadrant = q.astype(np.intp) & 3
-    # cos x = (c, -s, -c, s)[quadrant] = c a + s b and sin x = (s, c, -s, -c)[quadrant] = s a - c b, with a, b
-    # in {-1, 0, 1}: exact, and cheaper than masked selects.
-    a = _QUARTER_COS.take(quadrant)
-    b = _QUARTER_SIN.take(quadrant)
-    cos_out = cos * a
-    cos_out += sin * b
-    sin *= a
-    cos *= b
-    sin -= cos
-    return cos_out, sin
+    np.multiply(sin, b, out=z)  # s b
+    sin *= a  # s a
+    b *= cos  # c b
+    a *= cos  # c a
+    a += z  # cos x = c a + s b
+    sin -= b  # sin x = s a - c b
+    return a, sin
 
 
 def _horner(z: np.ndarray, coefficients: Sequence[float]) -> np.ndarray:
