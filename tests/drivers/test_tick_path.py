@@ -14,6 +14,7 @@ from drivers import units
 from drivers.dynamixel_bus import DynamixelBus, plan_servos
 from retarget.bus import ShutdownMode
 from retarget.clock import VirtualClock
+from retarget.errors import BusError
 from tests.drivers.test_dynamixel_bus import goal_writes
 
 
@@ -73,3 +74,16 @@ def test_positions_decode_as_ticks_to_rad_seeded(rig):
             expected = units.ticks_to_rad(np.array(present), offset=[s.offset for s in primaries])
             assert q.dtype == np.float64 and q.shape == (arm.n_joints,)
             np.testing.assert_array_equal(q, expected)
+
+
+def test_a_failed_goal_write_names_every_servo_of_the_packet(rig):
+    arm, simbus, url, clock = rig
+    bus = DynamixelBus(arm, url, clock=clock, shutdown=ShutdownMode.OFF, check_latency=False)
+    ids = tuple(s.id for s in plan_servos(arm) if s.role != "gripper")
+    with bus:
+        q = bus.read_positions()
+        bus.link.port.is_using = True  # another transaction holds the port: the SDK refuses to send
+        with pytest.raises(BusError, match=r"port busy \(sync write at address 116\)") as info:
+            bus.write_goals(q)
+        assert info.value.ids == tuple(sorted(ids))
+        bus.link.release()
