@@ -56,11 +56,11 @@ BLOCK_ELEMENTS = 1 << 12
 class _Level:
     """The joints at one depth of the skeleton, rotating ones first, and where their inputs are."""
 
-    joints: np.ndarray  #: (k,) joint indices
+    joints: slice  #: their position rows
     rows: slice  #: rotation rows of the first ``n_turning`` of them
     n_turning: int
     parent_rows: slice | np.ndarray | None  #: parents' rotation rows (a 1-row slice broadcasts); None for roots
-    parent_joints: slice | np.ndarray | None  #: parents' joint indices, likewise
+    parent_joints: slice | np.ndarray | None  #: parents' position rows, likewise
     offsets: np.ndarray  #: (3, k, 1) OFFSETs
     moving: tuple[tuple[int, int, int], ...]  #: position channels: (axis, slot in joints, column in channels)
 
@@ -95,10 +95,14 @@ def forward_kinematics(
     needs_rotation = np.full(nj, rotations, dtype=bool)
     needs_rotation[parents[parents >= 0]] = True
     needs_rotation[site_parents] = True
-    levels, turning = _plan(parents, offsets, channel_names, first_columns, needs_rotation)
+    levels, order = _plan(parents, offsets, channel_names, first_columns, needs_rotation)
+    turning = order[needs_rotation[order]]  # joint of each rotation row
+    slot = np.empty(nj, dtype=np.intp)  # a joint's position row
+    slot[order] = np.arange(nj)
     row = np.full(nj, -1, dtype=np.intp)  # a joint's rotation row
     row[turning] = np.arange(turning.size)
     groups = _rotation_groups(turning, channel_names, first_columns)
+    in_file_order = slice(None) if (order == np.arange(nj)).all() else slot
 
     positions = np.empty((n, nj, 3))
     sites = np.empty((n, site_parents.size, 3)) if end_sites else None
@@ -113,11 +117,11 @@ def forward_kinematics(
         b = f1 - f0
         _local_rotations(groups, columns, out=local[..., :b])
         _block(levels, local[..., :b], columns, world[..., :b], pos[..., :b])
-        positions[f0:f1] = pos[..., :b].transpose(2, 1, 0)
+        positions[f0:f1] = pos[:, in_file_order, :b].transpose(2, 1, 0)
         if sites is not None and site_parents.size:
             # p_site = p_parent + R_parent @ offset
             at = np.einsum("ij...,j...->i...", world[:, :, row[site_parents], :b], site_offsets.T[:, :, None])
-            at += pos[:, site_parents, :b]
+            at += pos[:, slot[site_parents], :b]
             sites[f0:f1] = at.transpose(2, 1, 0)
         if all_rot is not None:  # every joint turns
             all_rot[f0:f1] = world[:, :, row, :b].transpose(3, 2, 0, 1)
@@ -140,9 +144,9 @@ def _block(levels: list[_Level], local: np.ndarray, columns: np.ndarray, world: 
             continue
         parent_rot = world[:, :, level.parent_rows]  # (3, 3, k or 1, b)
         # p = p_parent + R_parent @ t;  R = R_parent @ R_local  (3x3 over the leading axes, rows broadcast)
-        at = np.einsum("ij...,j...->i...", parent_rot, trans)
+        at = pos[:, level.joints]
+        np.einsum("ij...,j...->i...", parent_rot, trans, out=at)
         at += pos[:, level.parent_joints]
-        pos[:, level.joints] = at
         if level.n_turning:
             np.einsum(
                 "ij...,jl...->il...", parent_rot[:, :, : level.n_turning], local[:, :, rows], out=world[:, :, rows]
@@ -156,51 +160,55 @@ def _plan(
     first_columns: Sequence[int],
     needs_rotation: np.ndarray,
 ) -> tuple[list[_Level], np.ndarray]:
-    """The levels (breadth-first, roots first; in each level the rotating joints first, then file order) and the
-    rotating joints in rotation-row order."""
-    depth = np.zeros(len(parents), dtype=np.intp)
-    for j, p in enumerate(parents):
-        depth[j] = depth[p] + 1 if p >= 0 else 0
-    order = np.lexsort((~needs_rotation, depth))  # by depth, then rotating first; stable: file order last
-    turning = order[needs_rotation[order]]
-    row = np.full(len(parents), -1, dtype=np.intp)
-    row[turning] = np.arange(turning.size)
-    counts = np.bincount(depth) if len(depth) else np.zeros(0, dtype=np.intp)
-    levels, first_row = [], 0
-    for stop, count in zip(np.cumsum(counts), counts, strict=True):
-        joints = order[stop - count : stop]
-        n_turning = int(np.count_nonzero(needs_rotation[joints]))
-        up = parents[joints]
-        moving = tuple(
-            (AXIS_INDEX[name[0]], slot, first_columns[j] + i)
-            for slot, j in enumerate(joints)
-            for i, name in enumerate(channel_names[j])
-            if name.endswith("position")
-        )
+    """The levels and the row order: breadth-first, roots first, in each level the rotating joints first, then
+    file order.  Positions use this order for all joints, rotations for the rotating ones (a prefix per level).
+    Returns the levels and ``order`` (joint index of each position row)."""
+    parent_list = parents.tolist()
+    turns = needs_rotation.tolist()
+    depth: list[int] = []
+    for p in parent_list:
+        depth.append(depth[p] + 1 if p >= 0 else 0)
+    by_level: list[list[int]] = [[] for _ in range(max(depth, default=-1) + 1)]
+    for j in sorted(range(len(parent_list)), key=lambda j: (depth[j], not turns[j], j)):
+        by_level[depth[j]].append(j)
+    slot, row = {}, {}  # joint -> position row, rotation row
+    for j in (j for level in by_level for j in level):
+        slot[j] = len(slot)
+        if turns[j]:
+            row[j] = len(row)
+    levels = []
+    for joints in by_level:
+        up = [parent_list[j] for j in joints]
+        first = slot[joints[0]]
+        n_turning = sum(turns[j] for j in joints)
         levels.append(
             _Level(
-                joints=joints,
-                rows=slice(first_row, first_row + n_turning),
+                joints=slice(first, first + len(joints)),
+                rows=slice(row.get(joints[0], 0), row.get(joints[0], 0) + n_turning),
                 n_turning=n_turning,
-                parent_rows=None if up[0] < 0 else _index(row[up]),
-                parent_joints=None if up[0] < 0 else _index(up),
+                parent_rows=None if up[0] < 0 else _index([row[p] for p in up]),
+                parent_joints=None if up[0] < 0 else _index([slot[p] for p in up]),
                 offsets=offsets[joints].T[:, :, None],
-                moving=moving,
+                moving=tuple(
+                    (AXIS_INDEX[name[0]], k, first_columns[j] + i)
+                    for k, j in enumerate(joints)
+                    for i, name in enumerate(channel_names[j])
+                    if name.endswith("position")
+                ),
             )
         )
-        first_row += n_turning
-    return levels, turning
+    return levels, np.array([j for level in by_level for j in level], dtype=np.intp)
 
 
-def _index(rows: np.ndarray) -> slice | np.ndarray:
+def _index(rows: list[int]) -> slice | np.ndarray:
     """``rows`` as an index on one axis: a 1-row slice when all are the same row (it broadcasts), a slice when
-    they are consecutive (a view), else the array itself (a copy)."""
-    first = int(rows[0])
-    if (rows == first).all():
+    they are consecutive (a view), else an array (a copy)."""
+    first = rows[0]
+    if all(r == first for r in rows):
         return slice(first, first + 1)
-    if (np.diff(rows) == 1).all():
-        return slice(first, first + rows.size)
-    return rows
+    if rows == list(range(first, first + len(rows))):
+        return slice(first, first + len(rows))
+    return np.array(rows, dtype=np.intp)
 
 
 def _rotation_groups(
