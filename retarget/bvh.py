@@ -416,14 +416,13 @@ def _read_frames_fast(buf: np.ndarray, base: int, length: int, n_frames: int, n_
         if (counts != n_channels).any() or filled + k > values.size:
             return None
         if k:
-            part, slow = _parse_tokens(buf, base + lo, starts, ends)
+            _, slow = _parse_tokens(buf, base + lo, starts, ends, out=values[filled : filled + k])
             if slow.any():
                 return None
-            values[filled : filled + k] = part
         filled += k
         lines += counts.size
         lo = hi
-    if lines != n_frames or filled != values.size or not np.isfinite(values).all():
+    if lines != n_frames or filled != values.size:  # (fast-path values are plain decimals: always finite)
         return None
     return values.reshape(n_frames, n_channels)
 
@@ -480,14 +479,16 @@ def _read_frames_checked(buf: np.ndarray, base: int, length: int, header: _Heade
     return values.reshape(n_frames, n_channels)
 
 
-def _parse_tokens(text: np.ndarray, base: int, starts: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _parse_tokens(
+    text: np.ndarray, base: int, starts: np.ndarray, ends: np.ndarray, *, out: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """:func:`bvh_numbers.parse_tokens` on ``text[base:]``, through a padded copy when the tokens run to the end."""
     stop = base + int(ends[-1])
     if base >= 8 and stop + bvh_numbers.PAD <= text.size:
-        return bvh_numbers.parse_tokens(text, base, starts, ends)
+        return bvh_numbers.parse_tokens(text, base, starts, ends, out=out)
     padded = np.full(stop - base + 8 + bvh_numbers.PAD, 32, dtype=np.uint8)
     padded[8 : 8 + stop - base] = text[base:stop]
-    return bvh_numbers.parse_tokens(padded, 8, starts, ends)
+    return bvh_numbers.parse_tokens(padded, 8, starts, ends, out=out)
 
 
 def _read_slow_tokens(block, starts, ends, values, slow) -> tuple[int, str] | None:

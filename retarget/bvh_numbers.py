@@ -134,16 +134,21 @@ def _anchors(b: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
     return anchors
 
 
-def parse_tokens(buf: np.ndarray, base: int, starts: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def parse_tokens(
+    buf: np.ndarray, base: int, starts: np.ndarray, ends: np.ndarray, *, out: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Values of the tokens ``buf[base + starts[i] : base + ends[i]]``.
 
     ``buf``: uint8 with at least 8 bytes before ``base`` and ``PAD`` bytes
     after the last token (any content: bytes outside a token are masked).
-    Returns ``(values (n,) float64, needs_slow (n,) bool)``; ``values`` is
-    garbage where ``needs_slow``.
+    Returns ``(values (n,) float64, needs_slow (n,) bool)``, ``values``
+    written into ``out`` if given; ``values`` is garbage where ``needs_slow``,
+    finite elsewhere.
     """
     n = starts.size
-    values = np.empty(n)
+    values = np.empty(n) if out is None else out
+    if values.shape != (n,):
+        raise ValueError(f"Expected out of shape ({n},), got {values.shape}")
     needs_slow = np.empty(n, dtype=bool)
     if n == 0:
         return values, needs_slow

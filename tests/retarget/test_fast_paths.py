@@ -114,3 +114,14 @@ def test_number_reader_never_trusts_a_misplaced_dot(line):
             assert is_slow, token
             continue
         assert is_slow or value == expected, token
+
+
+def test_number_reader_writes_into_out_and_checks_its_shape():
+    block = b"1.5 -2.25\n"
+    padded = bvh_numbers.pad_block(block)
+    starts, ends = bvh_numbers.token_bounds(padded[bvh_numbers.PAD : bvh_numbers.PAD + len(block)])
+    out = np.zeros(2)
+    values, slow = bvh_numbers.parse_tokens(padded, bvh_numbers.PAD, starts, ends, out=out)
+    assert values is out and out.tolist() == [1.5, -2.25] and not slow.any()
+    with pytest.raises(ValueError, match=r"Expected out of shape \(2,\), got \(3,\)"):
+        bvh_numbers.parse_tokens(padded, bvh_numbers.PAD, starts, ends, out=np.zeros(3))
