@@ -2,20 +2,26 @@
 
 The work is laid out for numpy, with frames on the last (contiguous) axis:
 
-* every 3x3 rotation is stored entry-major, ``(3, 3, k, n_frames)``, and
-  positions coordinate-major, ``(3, n_joints, n_frames)``, so each numpy
-  call works on long contiguous rows;
-* the local rotations of all joints are built in one go: one
+* every 3x3 rotation is stored entry-major, ``(3, 3, k, frames)``, and
+  positions coordinate-major, ``(3, n_joints, frames)``, so each numpy call
+  works on long contiguous rows;
+* frames go in blocks of ``BLOCK_ELEMENTS // n_rotating_joints`` (~170 for a
+  31-joint body): a block's buffers are allocated once per call and its
+  temporaries (~32 KB each) are recycled by the allocator, where
+  whole-clip temporaries (megabytes each) would be page-faulted in afresh on
+  every call, which costs more than the arithmetic;
+* per block, the local rotations of all joints are built in one go: one
   :func:`~retarget.rotations.cos_sin_degrees` per group of joints sharing a
-  rotation order (usually one group), then the Euler product entry by entry;
+  rotation order (usually one group), then the Euler product entry by entry
+  (:func:`~retarget.rotations.compose_entries`);
 * joints are then visited level by level (all joints at one depth together):
-  per level, one gather of the parents' world rotations and one ``einsum``
-  each for positions and world rotations.
+  per level one ``einsum`` for positions and one for world rotations.
 
 Only joints that need a world rotation get one: those with child joints, with
-End Sites (when ``end_sites``), or all (when ``rotations``).  Rotation rows are
-in breadth-first order with, inside each level, the rotating joints first, so
-a level's rows are one slice of the buffers.
+End Sites (when ``end_sites``), or all (when ``rotations``).  Rows are in
+breadth-first order with, inside each level, the rotating joints first, so a
+level's rows are one slice of each buffer; positions go back to file order
+once per block.
 
 Convention (see :mod:`retarget.motion`): ``R_world[j] = R_world[parent] @
 R_local[j]``, ``p_world[j] = p_world[parent] + R_world[parent] @ t_local[j]``,
@@ -47,8 +53,7 @@ class Pose:
     rotations: np.ndarray | None
 
 
-#: Rotation rows times frames per block: the temporaries of a block (~64 KB each) stay in cache and are recycled
-#: by the allocator instead of being page-faulted in afresh, which costs more than the arithmetic.
+#: Rotating joints times frames per block (see the module notes).
 BLOCK_ELEMENTS = 1 << 12
 
 
