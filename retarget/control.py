@@ -289,7 +289,7 @@ class ClipSource:
             else:  # after a skip only this slot (an overrunning loop skips every tick)
                 one, moved = self.loop.targets.at(self.loop.clip_time(i))
                 self._block0, self._block1 = i, i + 1
-                self._positions, self._clamped = (one,), (moved,)  # type: ignore[assignment]
+                self._positions, self._clamped = one[None], (moved,)
                 return one, None, moved
         j = i - self._block0
         rotations = self._rotations
