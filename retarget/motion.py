@@ -12,9 +12,9 @@ its rotation channels composed in listed order as intrinsic rotations
     R_world[j] = R_world[parent] @ R_local[j]
     p_world[j] = p_world[parent] + R_world[parent] @ t_local[j]
 
-FK (:mod:`retarget.bvh_fk`) runs over all frames at once, one depth level of
-the skeleton per step; results are computed on first use, cached, and
-returned read-only.
+FK (:mod:`retarget.bvh_fk`) runs vectorised over blocks of ~170 frames, one
+depth level of the skeleton per step; results are computed on first use,
+cached, and returned read-only.
 
 Example::
 
