@@ -21,6 +21,15 @@ def shared_clips() -> list[Path]:
     return sorted(SHARED_BVH.glob("*.bvh")) if SHARED_BVH.is_dir() else []
 
 
+def shared_clip_params() -> list:
+    """``shared_clips()`` for ``parametrize``: one skipped case, with the reason, when the folder is absent."""
+    clips = shared_clips()
+    if clips:
+        return [pytest.param(c, id=c.stem) for c in clips]
+    reason = f"real BVH clips not found at {SHARED_BVH} (set RETARGET_SHARED_BVH)"
+    return [pytest.param(None, id="no-shared-clips", marks=pytest.mark.skip(reason=reason))]
+
+
 @pytest.fixture
 def shared_bvh() -> Path:
     """The folder of real BVH clips; skips the test when it is absent."""

@@ -10,7 +10,7 @@ import pytest
 
 import retarget
 from retarget.cli import main
-from tests.conftest import shared_clips
+from tests.conftest import shared_clip_params
 
 
 def export(capsys, *args: str) -> tuple[int, str, str]:
@@ -58,7 +58,7 @@ def test_export_to_stdout_at_another_rate_matches_the_dry_run_replay(capsys):
 
 @pytest.mark.shared
 @pytest.mark.parametrize("side", ["left", "right"])
-@pytest.mark.parametrize("clip", shared_clips(), ids=lambda p: p.stem)
+@pytest.mark.parametrize("clip", shared_clip_params())
 def test_every_shared_clip_and_side_stays_within_limits(capsys, tmp_path, clip, side):
     """Zero commanded angles outside the limits and zero velocity-limit violations."""
     arm = retarget.load_arm("wx250s")
