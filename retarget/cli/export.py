@@ -20,6 +20,7 @@ examples:
   retarget export dance.bvh --arm wx250s -o traj.csv       100 Hz joint trajectory, radians
   retarget export dance.bvh --arm px100 --rate 50 -o -     to stdout
   retarget export dance.bvh --side left --start 2 --end 10 -o left.csv
+  retarget export dance.bvh --arm robot.urdf --tip ee_link -o traj.csv   a URDF with several leaves
 """
 
 

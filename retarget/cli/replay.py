@@ -4,7 +4,8 @@ With no arguments it replays the bundled demo clip on the default arm (wx250s)
 over an in-process simulated bus in real time.  ``--fast`` runs as fast as
 possible on a virtual clock shared with the simulator; ``--dry-run`` solves
 every tick without any bus.  Also home of the options ``retarget export``
-shares (clip window, mapping flags); the bus options live in ``retarget.cli._bus``.
+shares (clip window, mapping flags); the bus options live in ``retarget.cli._bus``, the arm
+options in ``retarget.cli._arm``.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from retarget.bus import connected
+from retarget.cli._arm import add_arm_arguments, load_arm_option
 from retarget.cli._bus import add_bus_arguments, build_bus, check_bus_options, sigint_stops
 from retarget.errors import ConfigError
 
@@ -29,8 +31,6 @@ if TYPE_CHECKING:
     from retarget.mapping import Targets
     from retarget.motion import Motion
 
-DEFAULT_ARM = "wx250s"
-
 EXAMPLES = """\
 examples:
   retarget replay                                  the demo clip on wx250s, in-process simulated bus, real time
@@ -39,6 +39,7 @@ examples:
   retarget replay dance.bvh --side left --speed 0.5 --telemetry run.csv
   retarget replay dance.bvh --dry-run --fast       solve every tick, no bus
   retarget replay dance.bvh --arm vx300s --port /dev/ttyUSB0 --shutdown rest
+  retarget replay dance.bvh --arm robot.urdf --tip ee_link --port /dev/ttyUSB0   a URDF with several leaves
   retarget replay --port 'sim://wx250s?drop=0.05&seed=1'   a simulated bus with faults, by URL
 """
 
@@ -47,9 +48,9 @@ examples:
 
 
 def add_clip_arguments(parser: argparse.ArgumentParser) -> None:
-    """CLIP, --arm, the clip window and the tick rate (shared with ``export``)."""
+    """CLIP, --arm/--base/--tip, the clip window and the tick rate (shared with ``export``)."""
     parser.add_argument("clip", nargs="?", metavar="CLIP", help="BVH file (default: the bundled demo clip)")
-    parser.add_argument("--arm", default=DEFAULT_ARM, help=f"arm name or TOML/URDF path (default {DEFAULT_ARM})")
+    add_arm_arguments(parser)
     parser.add_argument("--rate", default="100", metavar="HZ", help="control ticks per second (default 100)")
     parser.add_argument("--speed", default="1", metavar="F", help="playback speed factor (default 1)")
     parser.add_argument("--start", default=None, metavar="T", help="clip window start: seconds, or frames as 300f")
@@ -116,7 +117,7 @@ def load_inputs(args: argparse.Namespace) -> Inputs:
         clip = Path(DEMO_CLIP)
     else:
         clip = Path(args.clip)
-    arm = retarget.load_arm(args.arm)
+    arm = load_arm_option(args)
     overrides = {
         "side": args.side,
         "forward": args.forward,

@@ -7,6 +7,7 @@ import signal
 import sys
 import threading
 
+from retarget.cli._arm import add_link_arguments, load_arm_option
 from retarget.errors import ConfigError
 
 EPILOG = """\
@@ -19,6 +20,7 @@ examples:
   retarget sim --unplug 4@10 --hwerror 3:overload@5
                                                  servo 4 goes silent after 10 s; servo 3 overloads after 5 s
   retarget sim --wire --delay-ms 6:3             wire time at the baud rate; servo 6 answers 3 ms late
+  retarget sim --arm robot.urdf --tip ee_link    the servos of a URDF arm (servo IDs from robot.servos.toml)
 
 The first line on stdout is what to open: a device path (/dev/pts/N) or a socket:// URL; messages go to
 stderr.  Fault values take an optional servo ID: --drop 0.1 (every servo) or --drop 3:0.5 (servo 3).
@@ -40,6 +42,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     )
     servos = parser.add_argument_group("servos")
     servos.add_argument("--arm", default=None, help="bundled arm name or description file (default wx250s)")
+    add_link_arguments(servos)
     servos.add_argument("--ids", default=None, help="IDs instead of an arm, e.g. 1-6 or 1,2,5")
     servos.add_argument("--model", default=None, help="servo model with --ids (default XL430-W250)")
     servos.add_argument("--baud", type=int, default=None, help="the servos' baud rate (default: the arm's, or 1000000)")
@@ -101,6 +104,9 @@ def build_bus(args: argparse.Namespace):
     if args.ids is not None:
         if args.arm is not None:
             raise ConfigError("give either --arm or --ids, not both", key="--ids", value=args.ids)
+        if args.base is not None or args.tip is not None:
+            option = "--base" if args.base is not None else "--tip"
+            raise ConfigError(f"{option} goes with a URDF --arm, not --ids", key=option, value=args.ids)
         return SimBus.from_ids(
             parse_ids(args.ids),
             args.model or "XL430-W250",
@@ -113,7 +119,7 @@ def build_bus(args: argparse.Namespace):
     if args.model is not None:
         raise ConfigError("--model goes with --ids", key="--model", value=args.model)
     return SimBus.from_arm(
-        args.arm or "wx250s",
+        load_arm_option(args),
         clock=clock,
         baud=args.baud,
         return_delay_time=args.rdt,

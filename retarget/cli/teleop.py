@@ -22,6 +22,7 @@ import threading
 from typing import TYPE_CHECKING, Any
 
 from retarget.bus import connected
+from retarget.cli._arm import add_arm_arguments, load_arm_option
 from retarget.cli._bus import add_bus_arguments, build_bus, check_bus_options, sigint_stops
 from retarget.errors import ConfigError
 
@@ -32,7 +33,6 @@ if TYPE_CHECKING:
     from retarget.teleop_input import BasePose, TargetGate
     from retarget.teleop_sources import Source
 
-DEFAULT_ARM = "wx250s"
 DEFAULT_UDP_TIMEOUT = 1.0  #: s, the dead-man timeout of --udp unless --timeout says otherwise
 DEFAULT_UDP_MAX_LAG = 1.0  #: s, --udp skips targets this far behind the newest unless --max-lag says otherwise
 
@@ -86,7 +86,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     t.add_argument("--max-bytes", default="1024", metavar="N", help="size limit of a line or datagram (default 1024)")
 
     b = parser.add_argument_group("arm, bus and loop (as in replay; --shutdown defaults to hold here)")
-    b.add_argument("--arm", default=DEFAULT_ARM, help=f"arm name or TOML/URDF path (default {DEFAULT_ARM})")
+    add_arm_arguments(b)
     b.add_argument("--rate", default="100", metavar="HZ", help="control ticks per second (default 100)")
     b.add_argument("--velocity-scale", default="1", metavar="F", help="fraction of each joint's max speed (default 1)")
     b.add_argument("--max-ticks", default=None, metavar="N", help="stop after N ticks")
@@ -190,7 +190,6 @@ def _name(args: argparse.Namespace) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    import retarget
     from retarget.cli import EXIT_INTERRUPTED
     from retarget.cli.replay import number
     from retarget.control import LoopConfig
@@ -206,7 +205,7 @@ def run(args: argparse.Namespace) -> int:
     )
     if args.interactive and not (sys.stdin.isatty() and sys.stdout.isatty()):
         raise ConfigError("--interactive needs a terminal on stdin and stdout", key="--interactive", value=True)
-    arm = retarget.load_arm(args.arm)
+    arm = load_arm_option(args)
     setup = build_bus(args, arm)
     source = None
     telemetry = None
