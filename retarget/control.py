@@ -22,6 +22,24 @@ wrapped into ``[start, end)`` with ``loop``).  In its slot a tick:
 4. sends the goals in one ``bus.write_goals``;
 5. reads the present positions back with ``bus.read_positions``.
 
+A source may also give a tick a :class:`JointGoal` (a pose in joint space): the
+tick then runs no IK (0 sweeps) and steps 3-5 move toward that pose.
+
+**Lead-in.**  On a bus, :meth:`ControlLoop.run` first moves the arm from its
+present pose to the clip's first pose (:meth:`ControlLoop.initial_pose`, the IK
+solution of the first target) along a straight line in joint space with a
+raised-cosine time profile (at rest at both ends, synchronised so all joints
+arrive together), at a peak speed of ``lead_in_speed`` rad/s per joint (capped
+by ``velocity_scale x max_velocity``).  Its ticks are slots ``-n .. -1`` of the
+same tick loop, before the clip's clock starts (their ``time`` is negative,
+``TickRecord.lead_in`` is set, ``clip_time`` is the clip's start), so the clip
+still starts at slot 0 with the same bus calls, limits and velocity limiting.
+Its ticks are counted apart: the summary's ticks, IK stats, tick times,
+overruns and real-time factor are the clip's; ``lead_in_ticks`` and
+``lead_in_s`` report the lead-in; ``max_ticks`` counts clip ticks.  A dry run
+has no lead-in (no arm to move): start it from ``initial_pose()`` to get the
+trajectory the clip part of a bus run commands.
+
 It is deadline-aware: a tick that ends after the next slot's deadline counts
 as an overrun, and the loop resumes at the slot the clock is in (skipping the
 missed ones) instead of running late for ever after, so delays never
@@ -44,11 +62,12 @@ from __future__ import annotations
 
 import logging
 import math
+import sys
 import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, NamedTuple, Protocol
 
 import numpy as np
 
@@ -66,6 +85,8 @@ if TYPE_CHECKING:
 __all__ = [
     "ClipSource",
     "ControlLoop",
+    "JointGoal",
+    "LeadIn",
     "LoopConfig",
     "TargetSource",
     "TickRecord",
@@ -94,6 +115,9 @@ class LoopConfig:
     ik_iterations: int = 30  #: IK sweeps per tick (the per-tick budget; a warm tick needs 1-5)
     ik_tolerance: float = 1e-3  #: metres
     progress_every: float = 1.0  #: real seconds between progress callbacks (the first tick always reports)
+    #: peak joint speed, rad/s, of the lead-in to the clip's first pose on a bus (capped by each joint's
+    #: ``velocity_scale x max_velocity``); 0 = no lead-in (the first ticks go there at full speed)
+    lead_in_speed: float = 0.5
 
     def __post_init__(self) -> None:
         def bad(key: str, message: str, value: object) -> None:
@@ -115,6 +139,8 @@ class LoopConfig:
             bad("--ik-iterations", "Expected at least 1 sweep", self.ik_iterations)
         if not (math.isfinite(self.ik_tolerance) and self.ik_tolerance > 0):
             bad("--ik-tolerance", "Expected a tolerance > 0 m", self.ik_tolerance)
+        if not (math.isfinite(self.lead_in_speed) and self.lead_in_speed >= 0):
+            bad("--lead-in", "Expected a joint speed >= 0 rad/s (0: no lead-in)", self.lead_in_speed)
 
 
 @dataclass(frozen=True, slots=True)
@@ -136,6 +162,7 @@ class TickRecord:
     velocity_limited: bool
     overrun: bool
     bus_retries: int  #: retries the bus made during this tick
+    lead_in: bool = False  #: a tick of the lead-in (slot < 0, before the clip's clock starts)
 
 
 class ControlLoop:
@@ -224,13 +251,21 @@ class ControlLoop:
         rotation = None if rotations is None else rotations[0]
         return np.array(solver.solve(positions[0], self.arm.home, rotation).q, dtype=np.float64)
 
-    def run(self, bus: Bus | None = None, *, q_start: np.ndarray | None = None) -> RunSummary:
+    def run(
+        self, bus: Bus | None = None, *, q_start: np.ndarray | None = None, lead_in: bool | None = None
+    ) -> RunSummary:
         """Run the loop on a connected ``bus`` (``None``: dry run) and return the summary.
 
         The start pose is the bus's present positions, else ``q_start``, else the
-        arm's rest pose.  ``BusError`` propagates (the caller closes the bus).
+        arm's rest pose.  ``lead_in``: first move from the start pose to
+        :meth:`initial_pose` (see the module docstring; nothing when
+        ``config.lead_in_speed`` is 0); default on a bus only, True previews it in
+        a dry run.  ``BusError`` propagates (the caller closes the bus).
         """
-        source = ClipSource(self)
+        if lead_in is None:
+            lead_in = bus is not None
+        lead_to = self.initial_pose() if lead_in and self.config.lead_in_speed > 0 else None
+        source = ClipSource(self, lead_in_to=lead_to)
         ticks = run_ticks(
             self.arm,
             source,
@@ -252,10 +287,13 @@ class TargetSource(Protocol):
 
     ``target_at(tick, t)`` gets the slot index and its time since the run's start (loop clock) and returns
     ``(position (3,) metres, rotation (3, 3) | None, clamped)``, or ``None`` to **hold**: the tick then
-    keeps the commanded pose and runs no IK (0 sweeps).  ``finished(tick)`` ends the run before slot
-    ``tick``.  Optional: ``start(q_start)`` is called once with the start pose before the first tick,
-    ``observe(tick, q_cmd, q_present)`` after each tick (the goals sent and the positions read back, ``None``
-    in a dry run), and ``clip_time(tick)`` names the tick's clip seconds (default: the slot's time).
+    keeps the commanded pose and runs no IK (0 sweeps); or a :class:`JointGoal` to move toward a pose in
+    joint space without IK.  ``finished(tick)`` ends the run before slot ``tick``.  Optional:
+    ``start(q_start)`` is called once with the start pose before the first tick and may return the first
+    slot: ``-n`` runs ``n`` lead-in slots ``-n .. -1`` before the run's clock starts (counted apart, see
+    :class:`TickStats`); ``None`` or 0 starts at slot 0.  ``observe(tick, q_cmd, q_present)`` is called
+    after each tick (the goals sent and the positions read back, ``None`` in a dry run), and
+    ``clip_time(tick)`` names the tick's clip seconds (default: the slot's time).
     """
 
     def target_at(self, tick: int, t: float) -> tuple[np.ndarray, np.ndarray | None, bool] | None: ...
@@ -263,24 +301,94 @@ class TargetSource(Protocol):
     def finished(self, tick: int) -> bool: ...
 
 
-class ClipSource:
-    """The :class:`TargetSource` of a :class:`ControlLoop`: its clip window, sampled a block of slots at a time."""
+class JointGoal(NamedTuple):
+    """A tick's goal as a pose in joint space (a :class:`TargetSource` may return it): the tick runs no IK."""
 
-    def __init__(self, loop: ControlLoop):
+    q: np.ndarray  #: ``(n_joints,)`` rad, the pose to move toward (velocity-limited and clamped like a solution)
+    target: np.ndarray  #: ``(3,)`` metres, base frame: what the tick reports as its target
+
+
+@dataclass(frozen=True)
+class LeadIn:
+    """A joint-space move from ``q_from`` to ``q_to`` ``(n_joints,)`` rad over slots ``-n_slots .. -1``.
+
+    Straight in joint space with a raised-cosine time profile: at slot ``-n_slots - 1 + i`` the pose is
+    ``q_from + s_i (q_to - q_from)``, ``s_i = (1 - cos(pi i / n)) / 2``, so it starts and ends at rest, every
+    joint arrives together at slot -1, and joint ``j``'s largest step, ``|dq_j| sin(pi / 2n)``, stays within
+    ``speed_j / rate``.  No slots when a single step is already within that speed.
+    """
+
+    q_from: np.ndarray
+    q_to: np.ndarray
+    target: np.ndarray  #: ``(3,)`` metres: the target whose solution ``q_to`` is, reported by the lead-in ticks
+    n_slots: int
+
+    @classmethod
+    def plan(
+        cls, q_from: np.ndarray, q_to: np.ndarray, *, speed: np.ndarray, rate: float, target: np.ndarray
+    ) -> LeadIn:
+        """The lead-in at peak joint speeds ``speed`` ``(n_joints,)`` rad/s (> 0) and ``rate`` ticks per second."""
+        q_from = np.asarray(q_from, dtype=np.float64)
+        q_to = np.asarray(q_to, dtype=np.float64)
+        ratio = float(np.max(np.abs(q_to - q_from) / speed)) * rate  # slots the move takes at constant speed
+        n = 0 if ratio <= 1.0 else math.ceil(math.pi / (2.0 * math.asin(1.0 / ratio)))
+        return cls(q_from=q_from, q_to=q_to, target=np.asarray(target, dtype=np.float64), n_slots=n)
+
+    def goal(self, slot: int) -> JointGoal:
+        """The goal of lead-in slot ``slot`` (``-n_slots <= slot < 0``)."""
+        i = slot + self.n_slots + 1
+        if i >= self.n_slots:
+            return JointGoal(self.q_to, self.target)
+        s = 0.5 - 0.5 * math.cos(math.pi * i / self.n_slots)
+        return JointGoal(self.q_from + s * (self.q_to - self.q_from), self.target)
+
+
+class ClipSource:
+    """The :class:`TargetSource` of a :class:`ControlLoop`: its clip window, sampled a block of slots at a time.
+
+    With ``lead_in_to`` (a pose ``(n_joints,)`` rad, normally :meth:`ControlLoop.initial_pose`), ``start``
+    plans a :class:`LeadIn` from the start pose to it at the config's ``lead_in_speed`` and the clip starts
+    after it, at slot 0.
+    """
+
+    def __init__(self, loop: ControlLoop, *, lead_in_to: np.ndarray | None = None):
         self.loop = loop
         self.n_slots = loop.n_slots
         self.looping = loop.config.loop
+        self.lead_in_to = lead_in_to
+        self.lead_in: LeadIn | None = None  #: planned by ``start``
         self._block0 = self._block1 = 0  # the slots [block0, block1) of a pass whose targets are sampled
         self._positions = self._clamped = np.empty(0)
         self._rotations: np.ndarray | None = None
+
+    def start(self, q_start: np.ndarray) -> int:
+        """Plan the lead-in from ``q_start`` (if any); returns the first slot, ``-n`` for ``n`` lead-in slots."""
+        if self.lead_in_to is None:
+            return 0
+        loop, cfg = self.loop, self.loop.config
+        speed = np.minimum(cfg.lead_in_speed, cfg.velocity_scale * loop.arm.max_velocity)
+        positions, _, _ = loop.sample(0, 1)
+        self.lead_in = LeadIn.plan(q_start, self.lead_in_to, speed=speed, rate=cfg.rate, target=positions[0])
+        if self.lead_in.n_slots:
+            log.info(
+                "lead-in: %d ticks (%.2f s) to the clip's first pose at <= %.3g rad/s",
+                self.lead_in.n_slots,
+                self.lead_in.n_slots / cfg.rate,
+                cfg.lead_in_speed,
+            )
+        return -self.lead_in.n_slots
 
     def finished(self, tick: int) -> bool:
         return not self.looping and tick >= self.n_slots
 
     def clip_time(self, tick: int) -> float:
+        if tick < 0:  # the lead-in: the clip waits at its start
+            return self.loop.config.start
         return self.loop.clip_time(tick % self.n_slots if self.looping else tick)
 
-    def target_at(self, tick: int, t: float) -> tuple[np.ndarray, np.ndarray | None, bool]:
+    def target_at(self, tick: int, t: float) -> tuple[np.ndarray, np.ndarray | None, bool] | JointGoal:
+        if tick < 0:
+            return self.lead_in.goal(tick)  # type: ignore[union-attr]
         i = tick % self.n_slots if self.looping else tick
         if not self._block0 <= i < self._block1:  # sample the targets of the next slots, a block at a time
             if i == self._block1 or self._rotations is not None:
@@ -298,7 +406,12 @@ class ClipSource:
 
 @dataclass
 class TickStats:
-    """Per-tick series and counters of one :func:`run_ticks` run (times seconds, errors metres)."""
+    """Per-tick series and counters of one :func:`run_ticks` run (times seconds, errors metres).
+
+    The series, counters, ``wall_time`` and ``run_time`` cover the ticks of slots >= 0 (a clip's ticks);
+    the lead-in's ticks (slots < 0) are counted apart in ``lead_in_*``.  ``bus_errors``/``bus_retries``
+    cover the whole run.
+    """
 
     rate: float
     dry_run: bool
@@ -319,6 +432,10 @@ class TickStats:
     bus_retries: int = 0
     q_cmd: np.ndarray | None = None  #: the last goals sent ``(n_joints,)`` rad
     q_present: np.ndarray | None = None  #: the last positions read ``(n_joints,)`` rad
+    lead_in_slots: int = 0  #: slots the source's lead-in planned (``-first slot``)
+    lead_in_ticks: int = 0  #: lead-in ticks that ran
+    lead_in_time: float = 0.0  #: loop-clock seconds of the lead-in slots that ran (at most ``lead_in_slots / rate``)
+    lead_in_wall_time: float = 0.0  #: real seconds the lead-in took
 
     @property
     def ticks(self) -> int:
@@ -351,6 +468,8 @@ class TickStats:
             skipped_ticks=self.skipped,
             bus_errors=self.bus_errors,
             bus_retries=self.bus_retries,
+            lead_in_ticks=self.lead_in_ticks,
+            lead_in_s=self.lead_in_time,
         )
 
 
@@ -369,15 +488,15 @@ def run_ticks(
 ) -> TickStats:
     """The fixed-rate tick loop shared by replay and teleop; see the module docstring for one tick.
 
-    Runs slots ``0, 1, ...`` until ``source.finished(k)``, ``config.max_ticks`` ticks, ``stop`` or
-    Ctrl-C.  The start pose is the bus's present positions, else ``q_start``, else the arm's rest pose.
-    ``BusError`` propagates (the caller closes the bus).
+    Runs slots ``first, first + 1, ...`` (``first`` from ``source.start``, default 0; slots < 0 are a
+    lead-in before the run's clock starts) until ``source.finished(k)``, ``config.max_ticks`` ticks of
+    slots >= 0, ``stop`` or Ctrl-C.  The start pose is the bus's present positions, else ``q_start``, else
+    the arm's rest pose.  ``BusError`` propagates (the caller closes the bus).
     """
     cfg = config
     dt = 1.0 / cfg.rate
     lower, upper = arm.lower, arm.upper
     vstep = arm.max_velocity * cfg.velocity_scale * dt  # rad per slot
-    max_ticks = cfg.max_ticks
     solve = solver.solve
     target_at = source.target_at
     finished = source.finished
@@ -406,47 +525,64 @@ def run_ticks(
     q = q_cmd.tolist()  # the commanded pose as floats; q_cmd is its array, a new one every tick
     zero = [0.0] * arm.n_joints
     velocity = zero  # of the commanded pose, rad per slot
-    if hasattr(source, "start"):
-        source.start(q_cmd)
+    first = (source.start(q_cmd) or 0) if hasattr(source, "start") else 0
+    if first > 0:
+        raise ValueError(f"Expected the source's first slot <= 0, got {first}")
+    # the lead-in (slots < 0) is counted apart: until slot 0, max_ticks is off and nothing is split
+    boundary = 0 if first < 0 else sys.maxsize  # the slot where the lead-in ends
+    max_ticks = None if first < 0 else cfg.max_ticks
+    lead: tuple[int, int, int, int, float] | None = None  # ticks, overruns, skipped, holds, wall at slot 0
 
     err_l, sweeps_l, conv_l, clamp_l = st.errors, st.sweeps, st.converged, st.clamped
     vlim_l, comp_l, bus_l = st.velocity_limited, st.compute, st.bus
     overruns = skipped = holds = 0
-    last_slot = -1
+    last_slot = first - 1
     next_progress = 0.0  # perf_counter time of the next progress report
     retries_seen = retries_before
     target = np.full(3, np.nan)  # held ticks report the last target
     present = None
 
-    wall0 = perf()
-    t0 = clock.now()
-    k = 0
+    wall0 = wall_clip = perf()
+    t0 = clock.now() - first * dt  # slot k starts at t0 + k * dt: slot `first` now
+    k = first
     ticks = 0
     try:
         while (max_ticks is None or ticks < max_ticks) and not stop.is_set() and not finished(k):
             slot_time = k * dt
             clock.sleep_until(t0 + slot_time)
             c0 = perf()
+            if k >= boundary:  # the first tick after the lead-in: from here on the counts are the clip's
+                boundary = sys.maxsize
+                lead = (ticks, overruns, skipped, holds, c0)
+                wall_clip = c0
+                max_ticks = None if cfg.max_ticks is None else cfg.max_ticks + ticks
             sample = target_at(k, slot_time)
-            elapsed = k - last_slot if last_slot >= 0 else 1
+            elapsed = k - last_slot
             if sample is None:  # hold: no IK, the goals stay
                 holds += 1
                 velocity = zero
                 error, sweeps, converged, vlimited, clamped = 0.0, 0, True, False, False
             else:
-                target, rotation, clamped = sample
-                # seed: where the commanded pose is heading at half its current speed (a full-speed
-                # prediction saves a few more sweeps but overshoots into joint-limit traps now and then)
-                lead = _LEAD * elapsed
-                seed = [
-                    lo if (x := a + lead * v) < lo else hi if x > hi else x
-                    for a, v, (lo, hi) in zip(q, velocity, bounds, strict=True)
-                ]
-                result = solve(target, array(seed), rotation)
+                if sample.__class__ is JointGoal:  # a pose in joint space: no IK
+                    target = sample.target
+                    goal = sample.q.tolist()
+                    error, sweeps, converged, clamped = 0.0, 0, True, False
+                else:
+                    target, rotation, clamped = sample
+                    # seed: where the commanded pose is heading at half its current speed (a full-speed
+                    # prediction saves a few more sweeps but overshoots into joint-limit traps now and then)
+                    lead_by = _LEAD * elapsed
+                    seed = [
+                        lo if (x := a + lead_by * v) < lo else hi if x > hi else x
+                        for a, v, (lo, hi) in zip(q, velocity, bounds, strict=True)
+                    ]
+                    result = solve(target, array(seed), rotation)
+                    goal = result.q.tolist()
+                    error, sweeps, converged = result.error, result.iterations, result.converged
                 # each joint's step limited to vstep * elapsed, then the pose clamped to the limits
                 vlimited = False
                 q_next = []
-                for x, x0, s, (lo, hi) in zip(result.q.tolist(), q, vsteps, bounds, strict=True):
+                for x, x0, s, (lo, hi) in zip(goal, q, vsteps, bounds, strict=True):
                     d, m = x - x0, s * elapsed
                     if d > m:
                         d, vlimited = m, True
@@ -457,7 +593,6 @@ def run_ticks(
                 velocity = [(x - x0) / elapsed for x, x0 in zip(q_next, q, strict=True)]  # rad per slot
                 q = q_next
                 q_cmd = array(q)
-                error, sweeps, converged = result.error, result.iterations, result.converged
             c1 = perf()
             retries = 0
             c2 = c1
@@ -475,7 +610,7 @@ def run_ticks(
             next_k = k + 1
             if overrun:
                 overruns += 1
-                next_k = max(k + 1, int(now / dt))
+                next_k = max(k + 1, math.floor(now / dt))
                 skipped += next_k - k - 1
             err_l.append(error)
             sweeps_l.append(sweeps)
@@ -504,6 +639,7 @@ def run_ticks(
                     velocity_limited=vlimited,
                     overrun=overrun,
                     bus_retries=retries,
+                    lead_in=k < 0,
                 )
                 if on_tick is not None:
                     on_tick(record)
@@ -516,8 +652,19 @@ def run_ticks(
     except KeyboardInterrupt:
         st.interrupted = True
         log.info("interrupted at tick %d", k)
-    st.wall_time = perf() - wall0
+    wall1 = perf()
     st.last_slot = last_slot
+    if first < 0:  # split the lead-in's ticks off the series and counters
+        if lead is None:  # it never reached slot 0 (a tick interrupted in its callbacks is in the series)
+            lead = (len(err_l), overruns, skipped, holds, wall1)
+        n_lead, lead_overruns, lead_skipped, lead_holds, wall_clip = lead
+        for series in (err_l, sweeps_l, conv_l, clamp_l, vlim_l, comp_l, bus_l):
+            del series[:n_lead]
+        overruns, skipped, holds = overruns - lead_overruns, skipped - lead_skipped, holds - lead_holds
+        st.lead_in_slots, st.lead_in_ticks = -first, n_lead
+        st.lead_in_time = (min(last_slot, -1) - first + 1) / cfg.rate
+        st.lead_in_wall_time = wall_clip - wall0
+    st.wall_time = wall1 - wall_clip
     st.overruns, st.skipped, st.holds = overruns, skipped, holds
     st.q_cmd, st.q_present = q_cmd, present
     if bus is not None:

@@ -48,6 +48,9 @@ class RunSummary:
     bus_ms_p50: float  #: write_goals + read_positions, real time
     overruns: int  #: ticks that ended after the next tick's deadline
     skipped_ticks: int  #: schedule slots dropped to catch up after overruns (no drift)
+    #: the lead-in on a bus, before the clip's clock starts (not counted in anything above but bus errors/retries)
+    lead_in_ticks: int = 0
+    lead_in_s: float = 0.0  #: loop-clock seconds of the lead-in
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dict (floats rounded to 4 decimals)."""
@@ -58,11 +61,18 @@ class RunSummary:
         head = "dry run" if self.dry_run else "replay"
         if self.interrupted:
             head += " (interrupted)"
+        lead_in = []
+        if self.lead_in_ticks:
+            lead_in = [
+                f"  lead-in to the clip's first pose: {self.lead_in_s:.2f} s, {self.lead_in_ticks} ticks "
+                "(before the clip; of the counts below only the bus errors and retries include it)"
+            ]
         return "\n".join(
             [
                 f"{head}: {self.clip} on {self.arm}: {self.frames} frames, {self.duration_s:.2f} s of motion, "
                 f"{self.ticks} ticks at {self.rate_hz:g} Hz in {self.wall_time_s:.3f} s "
                 f"({self.real_time_factor:.1f}x real time)",
+                *lead_in,
                 f"  IK: {self.ik_converged_pct:.1f}% converged, error median {self.ik_error_median_mm:.2f} mm, "
                 f"p95 {self.ik_error_p95_mm:.2f} mm, max {self.ik_error_max_mm:.2f} mm, "
                 f"{self.ik_sweeps_mean:.1f} sweeps/tick",
@@ -101,8 +111,13 @@ def summarize(
     skipped_ticks: int,
     bus_errors: int = 0,
     bus_retries: int = 0,
+    lead_in_ticks: int = 0,
+    lead_in_s: float = 0.0,
 ) -> RunSummary:
-    """A :class:`RunSummary` from per-tick arrays ``(n_ticks,)`` (errors metres, times seconds)."""
+    """A :class:`RunSummary` from per-tick arrays ``(n_ticks,)`` (errors metres, times seconds).
+
+    The arrays and counters are the clip's; ``lead_in_ticks``/``lead_in_s`` describe the lead-in before it.
+    """
     err_mm = np.asarray(ik_error_m, dtype=np.float64) * 1e3
     tick_ms = (np.asarray(compute_s) + np.asarray(bus_s)) * 1e3
     compute_ms = np.asarray(compute_s, dtype=np.float64) * 1e3
@@ -118,7 +133,9 @@ def summarize(
         rate_hz=float(rate),
         run_time_s=float(run_time_s),
         wall_time_s=float(wall_time_s),
-        real_time_factor=float(run_time_s / wall_time_s) if wall_time_s > 0 else float("inf"),
+        real_time_factor=(
+            float(run_time_s / wall_time_s) if wall_time_s > 0 else float("inf") if run_time_s > 0 else 0.0
+        ),
         ik_converged_pct=100.0 * float(np.count_nonzero(ik_converged)) / n if n else 0.0,
         ik_error_median_mm=_pct(err_mm, 50),
         ik_error_p95_mm=_pct(err_mm, 95),
@@ -136,4 +153,6 @@ def summarize(
         bus_ms_p50=_pct(np.asarray(bus_s, dtype=np.float64) * 1e3, 50),
         overruns=int(overruns),
         skipped_ticks=int(skipped_ticks),
+        lead_in_ticks=int(lead_in_ticks),
+        lead_in_s=float(lead_in_s),
     )

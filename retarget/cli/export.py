@@ -3,7 +3,8 @@
 The trajectory is what ``retarget replay`` would command, tick by tick, at
 ``--rate``: IK warm-started from the previous tick, joint limits and velocity
 limits applied.  It starts at the IK solution of the first target (no lead-in
-from a rest pose).  Columns: ``time_s`` then one ``<joint>_rad`` per joint
+from a rest pose: there is no arm; on a bus, replay's lead-in moves there first
+and then commands this trajectory).  Columns: ``time_s`` then one ``<joint>_rad`` per joint
 (radians, the arm's joint order).
 """
 

@@ -1,11 +1,14 @@
 """``retarget replay``: play a BVH clip's arm motion on an arm, in a fixed-rate control loop.
 
 With no arguments it replays the bundled demo clip on the default arm (wx250s)
-over an in-process simulated bus in real time.  ``--fast`` runs as fast as
+over an in-process simulated bus in real time.  On a bus, a lead-in first moves
+the arm from where it is to the clip's first pose at a gentle joint speed
+(``--lead-in``), then the clip plays from its start.  ``--fast`` runs as fast as
 possible on a virtual clock shared with the simulator; ``--dry-run`` solves
-every tick without any bus.  Also home of the options ``retarget export``
-shares (clip window, mapping flags); the bus options live in ``retarget.cli._bus``, the arm
-options in ``retarget.cli._arm``.
+every tick without any bus, starting on the first target's solution (no lead-in:
+no arm to move), like ``retarget export``.  Also home of the options ``retarget
+export`` shares (clip window, mapping flags); the bus options live in
+``retarget.cli._bus``, the arm options in ``retarget.cli._arm``.
 """
 
 from __future__ import annotations
@@ -39,6 +42,7 @@ examples:
   retarget replay dance.bvh --side left --speed 0.5 --telemetry run.csv
   retarget replay dance.bvh --dry-run --fast       solve every tick, no bus
   retarget replay dance.bvh --arm vx300s --port /dev/ttyUSB0 --shutdown rest
+  retarget replay dance.bvh --port /dev/ttyUSB0 --lead-in 0.3   a gentler move to the clip's first pose
   retarget replay dance.bvh --arm robot.urdf --tip ee_link --port /dev/ttyUSB0   a URDF with several leaves
   retarget replay --port 'sim://wx250s?drop=0.05&seed=1'   a simulated bus with faults, by URL
 """
@@ -187,8 +191,17 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     )
     add_clip_arguments(parser)
     parser.add_argument("--loop", action="store_true", help="wrap to --start after --end until Ctrl-C")
-    parser.add_argument("--max-ticks", default=None, metavar="N", help="stop after N ticks")
-    parser.add_argument("--dry-run", action="store_true", help="solve every tick without any bus")
+    parser.add_argument("--max-ticks", default=None, metavar="N", help="stop after N ticks of the clip")
+    parser.add_argument(
+        "--lead-in",
+        default="0.5",
+        metavar="RAD_PER_S",
+        help="on a bus, first move to the clip's first pose at this peak joint speed (default 0.5; 0 = none: "
+        "the first ticks go there at each joint's full speed)",
+    )
+    parser.add_argument(
+        "--dry-run", action="store_true", help="solve every tick without any bus (from the first pose, no lead-in)"
+    )
     add_bus_arguments(parser, shutdown="rest")
     add_mapping_arguments(parser)
     return parser
@@ -199,6 +212,9 @@ def _progress_printer(loop: ControlLoop) -> Callable[[TickRecord], None]:
     start, end = loop.window
 
     def show(r: TickRecord) -> None:
+        if r.lead_in:
+            print(f"retarget: lead-in t={r.time:6.1f} s  to the clip's first pose", file=sys.stderr, flush=True)
+            return
         pct = f" {100.0 * r.tick / total:3.0f}%" if total else ""
         print(
             f"retarget:{pct} t={r.time:6.1f} s  clip {r.clip_time:6.2f}/{end:.2f} s  IK {r.ik_error * 1e3:5.2f} mm",
@@ -224,6 +240,7 @@ def run(args: argparse.Namespace) -> int:
         inputs.motion,
         loop=args.loop,
         max_ticks=number(args.max_ticks, option="--max-ticks", integer=True),
+        lead_in_speed=number(args.lead_in, option="--lead-in"),
     )
     setup = None if args.dry_run else build_bus(args, inputs.arm)
     telemetry = None
@@ -237,8 +254,8 @@ def run(args: argparse.Namespace) -> int:
             telemetry = TelemetryWriter(out, inputs.arm.joint_names).open()
             loop.on_tick = telemetry
         with sigint_stops(loop.stop):
-            if setup is None:
-                summary = loop.run(None)
+            if setup is None:  # no arm to lead in: start on the first target's solution, as export does
+                summary = loop.run(None, q_start=loop.initial_pose())
             else:
                 with connected(setup.bus):
                     summary = loop.run(setup.bus)

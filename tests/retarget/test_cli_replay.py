@@ -42,11 +42,17 @@ def test_demo_clip_end_to_end(arm, registered, capsys, tmp_path):
     assert summary["ticks"] == 301 and summary["rate_hz"] == 100
     assert summary["ik_converged_pct"] > 95 and summary["bus_errors"] == 0 and not summary["interrupted"]
     assert "replay: demo.bvh on wx250s" in err and "IK:" in err  # the human summary on stderr
-    rows = read_csv(csv_path)
+    all_rows = read_csv(csv_path)
+    # the lead-in from the rest pose comes first (lead_in 1, negative times), then the clip's rows
+    lead = [r for r in all_rows if r["lead_in"] == "1"]
+    rows = [r for r in all_rows if r["lead_in"] == "0"]
+    assert all_rows == lead + rows and len(lead) == summary["lead_in_ticks"] > 0
+    assert summary["lead_in_s"] == pytest.approx(len(lead) / 100)
+    assert float(lead[0]["time_s"]) == pytest.approx(-summary["lead_in_s"]) and float(lead[-1]["time_s"]) < 0
     assert len(rows) == summary["ticks"]
     assert [float(r["time_s"]) for r in rows[:3]] == [0.0, 0.01, 0.02]
-    cmd = np.array([[float(r[f"{j}_cmd_rad"]) for j in arm.joint_names] for r in rows])
-    present = np.array([[float(r[f"{j}_present_rad"]) for j in arm.joint_names] for r in rows])
+    cmd = np.array([[float(r[f"{j}_cmd_rad"]) for j in arm.joint_names] for r in all_rows])
+    present = np.array([[float(r[f"{j}_present_rad"]) for j in arm.joint_names] for r in all_rows])
     assert np.all(cmd >= arm.lower) and np.all(cmd <= arm.upper)
     assert np.all(np.abs(np.diff(cmd, axis=0)) <= arm.max_velocity / 100 + 1e-5)  # 6-decimal CSV rounding
     assert np.max(np.abs(present[-1] - cmd[-1])) < 0.1
@@ -103,7 +109,8 @@ def test_progress_lines_on_request(capsys):
     assert "t=   0.0 s  clip   0.00/2.50 s" in progress[0]
 
 
-def test_sigint_stops_cleanly_through_the_shutdown_sequence(arm, registered, capsys):
+@pytest.mark.parametrize("lead_in", ["0.05", "0"], ids=["during-the-lead-in", "no-lead-in"])
+def test_sigint_stops_cleanly_through_the_shutdown_sequence(arm, registered, capsys, lead_in):
     simbus, url = registered
 
     def interrupt_once_running() -> None:
@@ -117,10 +124,15 @@ def test_sigint_stops_cleanly_through_the_shutdown_sequence(arm, registered, cap
 
     watcher = threading.Thread(target=interrupt_once_running, daemon=True)
     watcher.start()
-    code, out, err = replay(capsys, "--port", url, "--fast", "--loop", "--json")
+    code, out, err = replay(capsys, "--port", url, "--fast", "--loop", "--json", "--lead-in", lead_in)
     watcher.join()
     assert code == 130
     assert json.loads(out)["interrupted"] is True
+    summary = json.loads(out)
+    if lead_in == "0":
+        assert summary["lead_in_ticks"] == 0 and summary["ticks"] >= 10
+    else:  # a 60 s lead-in at 0.05 rad/s: Ctrl-C lands in it, before any clip tick
+        assert summary["ticks"] == 0 and 10 <= summary["lead_in_ticks"] < 6000
     assert "stopping" in err and "(interrupted)" in err
     assert torque(simbus, arm) == [0] * 8
     np.testing.assert_allclose(servo_angles(simbus, arm), arm.rest, atol=0.06)
@@ -181,6 +193,12 @@ def bad_bvh(tmp_path):
         (["--origin", "1,2"], r"--origin: Expected three numbers"),
         (["--floor", "low"], r"--floor: Expected a finite number of metres \(got 'low'\)"),
         (["--velocity-scale", "2"], r"--velocity-scale: Expected a fraction in \(0, 1\]"),
+        (
+            ["--lead-in", "-1"],
+            r"^retarget: --lead-in: Expected a joint speed >= 0 rad/s \(0: no lead-in\) \(got -1\.0\)$",
+        ),
+        (["--lead-in", "slow"], r"--lead-in: Expected a number \(got 'slow'\)"),
+        (["--lead-in", "nan"], r"--lead-in: Expected a joint speed >= 0 rad/s"),
         (["--shutdown", "later"], r"--shutdown: Expected hold, rest or off \(got 'later'\)"),
         (["--fast", "--port", "/dev/ttyUSB0"], r"--port: --fast needs the simulated bus"),
         (["--dry-run", "--port", "sim://wx250s"], r"--port: --dry-run uses no bus"),
@@ -207,6 +225,8 @@ def test_help_has_examples(capsys):
     assert info.value.code == 0
     out = capsys.readouterr().out
     assert "examples:" in out and "retarget replay --fast --json" in out and "--telemetry" in out
+    assert "--lead-in RAD_PER_S" in out and "--lead-in 0.3" in out
+    assert "--base LINK" in out and "--tip LINK" in out
 
 
 def test_the_arm_files_mapping_table_is_used_and_checked(capsys, tmp_path):
@@ -238,3 +258,79 @@ def test_a_sim_url_with_faults_runs_on_a_virtual_clock_with_fast(capsys):
     summary = json.loads(out)
     assert summary["bus_retries"] > 0 and summary["bus_errors"] == 0
     assert summary["real_time_factor"] > 1  # dropped replies cost virtual time only
+
+
+# --------------------------------------------------------------------------------------------- the lead-in
+
+
+def joint_matrix(rows: list[dict[str, str]], arm, kind: str = "cmd") -> np.ndarray:
+    return np.array([[float(r[f"{j}_{kind}_rad"]) for j in arm.joint_names] for r in rows])
+
+
+def demo_first_pose(arm) -> np.ndarray:
+    """The IK solution of the demo clip's first target (default mapping), as the loop solves it."""
+    from retarget.bvh import DEMO_CLIP
+    from retarget.clock import VirtualClock
+    from retarget.control import ControlLoop
+    from retarget.mapping import retarget_targets
+
+    targets = retarget_targets(retarget.load_bvh(DEMO_CLIP), arm)
+    return ControlLoop(arm, targets, clock=VirtualClock()).initial_pose()
+
+
+def test_lead_in_then_the_clip_against_no_lead_in(arm, capsys, tmp_path):
+    """In-process simulated bus, from the rest pose: a gentle lead-in to the clip's first pose, then the clip
+    with the same clip stats; --lead-in 0 is the old start: full speed from the rest pose."""
+    q1 = demo_first_pose(arm)
+    runs = {}
+    for lead_in in ("0.25", "0"):
+        path = tmp_path / f"run-{lead_in}.csv"
+        code, out, err = replay(capsys, "--fast", "--json", "--end", "1", "--lead-in", lead_in, "--progress",
+                                "--telemetry", str(path))  # fmt: skip
+        assert code == 0, err
+        runs[lead_in] = (json.loads(out), read_csv(path), err)
+
+    summary, rows, err = runs["0.25"]
+    lead = [r for r in rows if r["lead_in"] == "1"]
+    clip = rows[len(lead) :]
+    assert len(lead) == summary["lead_in_ticks"] > 100 and all(r["lead_in"] == "0" for r in clip)
+    assert summary["lead_in_s"] == pytest.approx(len(lead) / 100)
+    assert [int(r["tick"]) for r in lead] == list(range(-len(lead), 0))
+    assert all(float(r["clip_time_s"]) == 0.0 and r["ik_sweeps"] == "0" for r in lead)
+    cmd = joint_matrix(lead, arm)
+    steps = np.abs(np.diff(np.vstack([arm.rest, cmd]), axis=0))
+    assert np.all(steps <= 0.25 / 100 + 2e-5)  # rest as the servos read it (whole ticks), then 6-decimal rows
+    assert np.max(steps) > 0.95 * 0.25 / 100
+    np.testing.assert_allclose(cmd[-1], q1, atol=2e-6)  # on the first target's solution before clip tick 0
+    assert float(clip[0]["time_s"]) == 0.0 and clip[0]["velocity_limited"] == "0"
+    assert np.max(np.abs(joint_matrix(clip[:1], arm)[0] - q1)) < 2e-3  # no jump
+    assert "lead-in to the clip's first pose: " in err
+    assert "retarget: lead-in t=" in err.splitlines()[0]  # progress: the first tick is the lead-in's
+
+    plain, plain_rows, plain_err = runs["0"]
+    assert plain["lead_in_ticks"] == 0 and plain["lead_in_s"] == 0.0 and "lead-in" not in plain_err
+    assert all(r["lead_in"] == "0" for r in plain_rows) and float(plain_rows[0]["time_s"]) == 0.0
+    steps = np.abs(np.diff(np.vstack([arm.rest, joint_matrix(plain_rows[:50], arm)]), axis=0))
+    assert np.max(steps / (arm.max_velocity / 100)) > 0.99  # the old start: full speed out of the rest pose
+    # the clip's numbers mean the clip either way; only the start transient is gone
+    for key in ("ticks", "frames", "duration_s", "run_time_s", "rate_hz"):
+        assert summary[key] == plain[key], key
+    assert summary["ticks"] == len(clip) == len(plain_rows) == 101
+    assert summary["velocity_limited_ticks"] < plain["velocity_limited_ticks"]
+    assert summary["ik_converged_pct"] >= plain["ik_converged_pct"]
+
+
+def test_a_dry_run_starts_on_the_first_targets_solution_like_export(arm, capsys, tmp_path):
+    path = tmp_path / "dry.csv"
+    code, out, err = replay(capsys, "--dry-run", "--fast", "--json", "--end", "1", "--telemetry", str(path))
+    assert code == 0, err
+    summary = json.loads(out)
+    rows = read_csv(path)
+    assert summary["lead_in_ticks"] == 0 and len(rows) == summary["ticks"] == 101 and "lead-in" not in err
+    assert all(r["lead_in"] == "0" for r in rows)
+    np.testing.assert_allclose(joint_matrix(rows[:1], arm)[0], demo_first_pose(arm), atol=2e-3)
+    assert rows[0]["velocity_limited"] == "0"
+    code, out, err = main(["export", "--end", "1", "-o", "-"]), *capsys.readouterr()
+    assert code == 0, err
+    exported = np.array([line.split(",") for line in out.splitlines()[1:]], dtype=np.float64)
+    np.testing.assert_allclose(exported[:, 1:], joint_matrix(rows, arm), atol=2e-6)  # the same trajectory

@@ -285,6 +285,10 @@ def test_run_on_the_simulated_bus_reaches_the_solved_angles(arm, sim_bus):
     records: list[TickRecord] = []
     loop = ControlLoop(arm, circle_targets(arm), config=LoopConfig(end=1.0), clock=clock, on_tick=records.append)
     summary = run_on_bus(loop, DynamixelBus(arm, url, clock=clock, shutdown="hold"))
+    # on a bus the lead-in from the rest pose runs first; its ticks are reported apart from the clip's
+    lead = [r for r in records if r.lead_in]
+    assert records[: len(lead)] == lead and len(lead) == summary.lead_in_ticks > 0
+    records = records[len(lead) :]
     assert summary.ticks == len(records) == 101 and not summary.dry_run
     assert summary.bus_errors == 0 and summary.overruns == 0
     # the present positions read back each tick follow the goals
@@ -346,3 +350,194 @@ def test_a_stop_before_the_first_tick_gives_an_empty_summary(arm):
     assert summary.interrupted and summary.ticks == 0
     assert summary.ik_converged_pct == 0.0 and summary.tick_ms_max == 0.0 and summary.duration_s == 0.0
     assert "0 ticks" in summary.format()
+
+
+# --------------------------------------------------------------------------------------------- the lead-in
+
+
+def rest_as_read(arm) -> np.ndarray:
+    """The rest pose as the driver reads it back from the simulated servos (whole position ticks), radians."""
+    from drivers.units import rad_to_ticks, ticks_to_rad
+
+    offsets = np.array([j.servos[0].offset for j in arm.joints])
+    directions = np.array([j.servos[0].direction for j in arm.joints])
+    ticks = rad_to_ticks(arm.rest, offset=offsets, direction=directions)
+    return ticks_to_rad(ticks, offset=offsets, direction=directions)
+
+
+def split_lead_in(records: list[TickRecord]) -> tuple[list[TickRecord], list[TickRecord]]:
+    """(lead-in records, clip records); the lead-in's come first."""
+    n = sum(r.lead_in for r in records)
+    assert all(r.lead_in for r in records[:n]) and not any(r.lead_in for r in records[n:])
+    return records[:n], records[n:]
+
+
+@pytest.mark.parametrize("speed", [0.5, 0.2, 10.0], ids=["default", "slow", "capped-by-max-velocity"])
+def test_lead_in_on_the_bus_moves_to_the_first_pose_within_its_speed_then_plays_the_clip(arm, sim_bus, speed):
+    from drivers import DynamixelBus
+
+    simbus, url, clock = sim_bus()
+    records: list[TickRecord] = []
+    config = LoopConfig(end=1.0, lead_in_speed=speed)
+    loop = ControlLoop(arm, circle_targets(arm), config=config, clock=clock, on_tick=records.append)
+    q1 = loop.initial_pose()
+    q0 = rest_as_read(arm)  # the start pose
+    summary = run_on_bus(loop, DynamixelBus(arm, url, clock=clock, shutdown="hold"))
+    lead, clip = split_lead_in(records)
+    n = len(lead)
+    assert n == summary.lead_in_ticks > 0 and summary.lead_in_s == pytest.approx(n / 100)
+    # slots -n .. -1 before the clip's clock starts, the clip waiting at its start, no IK
+    assert [r.tick for r in lead] == list(range(-n, 0))
+    assert all(r.time == pytest.approx(r.tick / 100) and r.clip_time == 0.0 for r in lead)
+    assert all(r.ik_sweeps == 0 and not r.velocity_limited and r.q_present is not None for r in lead)
+    np.testing.assert_allclose(lead[0].target, circle_targets(arm).raw[0], atol=1e-12)  # heading for the first
+    # from the servos' start pose (rest) no joint moves faster than the lead-in speed (capped by max velocity)
+    cap = np.minimum(speed, arm.max_velocity)
+    q = np.array([q0, *(r.q_cmd for r in lead)])
+    steps = np.abs(np.diff(q, axis=0))
+    assert np.all(steps <= cap / 100 + 1e-12)
+    assert np.max(steps / cap) * 100 > 0.95  # ...and not much slower: the peak is the speed
+    # it ends on the first target's solution before clip tick 0, which starts there without a jump
+    np.testing.assert_allclose(lead[-1].q_cmd, q1, atol=1e-12)
+    assert clip[0].tick == 0 and clip[0].time == 0.0 and not clip[0].velocity_limited
+    assert np.max(np.abs(clip[0].q_cmd - q1)) < 2e-3
+    assert np.max(np.abs(lead[-1].q_present - q1)) < 0.05  # the servos followed
+    # the clip's stats are the clip's
+    assert summary.ticks == len(clip) == 101 and summary.duration_s == pytest.approx(1.01)
+    assert summary.run_time_s == pytest.approx(1.01)
+    assert summary.velocity_limited_ticks == sum(r.velocity_limited for r in clip)
+    assert summary.ik_error_max_mm == pytest.approx(max(r.ik_error for r in clip) * 1e3)
+    assert "lead-in to the clip's first pose: " in summary.format()
+    assert f"{n} ticks (before the clip" in summary.format()
+
+
+def test_no_lead_in_at_speed_0_goes_to_the_first_pose_at_full_speed(arm, sim_bus):
+    """Today's start, kept with lead_in_speed=0: the first ticks move at each joint's max velocity."""
+    from drivers import DynamixelBus
+
+    simbus, url, clock = sim_bus()
+    records: list[TickRecord] = []
+    loop = ControlLoop(
+        arm, circle_targets(arm), config=LoopConfig(end=1.0, lead_in_speed=0), clock=clock, on_tick=records.append
+    )
+    q0 = rest_as_read(arm)
+    summary = run_on_bus(loop, DynamixelBus(arm, url, clock=clock, shutdown="hold"))
+    assert summary.lead_in_ticks == 0 and summary.lead_in_s == 0.0 and summary.ticks == len(records) == 101
+    assert records[0].tick == 0 and not any(r.lead_in for r in records)
+    steps = np.abs(np.diff(np.array([q0, *(r.q_cmd for r in records)]), axis=0))
+    assert np.max(steps / arm.max_velocity) * 100 == pytest.approx(1.0)  # full speed
+    assert records[0].velocity_limited and summary.velocity_limited_ticks > 10
+    assert "lead-in" not in summary.format()
+
+
+def test_a_dry_run_has_no_lead_in_unless_asked(arm):
+    loop = ControlLoop(arm, circle_targets(arm), config=LoopConfig(end=1.0), clock=VirtualClock())
+    assert loop.run(None).lead_in_ticks == 0
+    records: list[TickRecord] = []
+    loop.on_tick = records.append
+    summary = loop.run(None, lead_in=True)  # a preview from the rest pose
+    lead, clip = split_lead_in(records)
+    assert len(lead) == summary.lead_in_ticks > 0 and summary.ticks == len(clip) == 101
+    np.testing.assert_allclose(lead[-1].q_cmd, loop.initial_pose(), atol=1e-12)
+    assert np.all(lead[0].q_present is None for r in lead)
+    # and a start pose already on the first pose needs none
+    assert loop.run(None, q_start=loop.initial_pose(), lead_in=True).lead_in_ticks == 0
+
+
+def test_max_ticks_counts_the_clips_ticks(arm):
+    records: list[TickRecord] = []
+    loop = ControlLoop(arm, circle_targets(arm), config=LoopConfig(max_ticks=5), clock=VirtualClock())
+    loop.on_tick = records.append
+    summary = loop.run(None, lead_in=True)
+    lead, clip = split_lead_in(records)
+    assert summary.ticks == len(clip) == 5 and len(lead) == summary.lead_in_ticks > 5
+
+
+def test_a_stop_during_the_lead_in_ends_the_run_with_no_clip_ticks(arm):
+    records: list[TickRecord] = []
+    loop = ControlLoop(arm, circle_targets(arm), clock=VirtualClock())
+
+    def on_tick(r: TickRecord) -> None:
+        records.append(r)
+        if len(records) == 10:
+            loop.stop()
+
+    loop.on_tick = on_tick
+    summary = loop.run(None, lead_in=True)
+    assert summary.interrupted and summary.ticks == 0 and summary.lead_in_ticks == 10
+    assert all(r.lead_in for r in records) and summary.lead_in_s == pytest.approx(0.1)
+    assert summary.duration_s == 0.0 and summary.run_time_s == 0.0 and summary.real_time_factor == 0.0
+
+
+def test_ctrl_c_during_the_lead_in_shuts_the_bus_down_at_rest(arm, sim_bus):
+    from drivers import DynamixelBus
+
+    simbus, url, clock = sim_bus()
+
+    records: list[TickRecord] = []
+
+    def on_tick(r: TickRecord) -> None:
+        records.append(r)
+        if len(records) == 100:
+            raise KeyboardInterrupt
+
+    loop = ControlLoop(arm, circle_targets(arm), config=LoopConfig(lead_in_speed=0.1), clock=clock, on_tick=on_tick)
+    bus = DynamixelBus(arm, url, clock=clock, shutdown="rest")
+    summary = run_on_bus(loop, bus)
+    assert summary.interrupted and summary.ticks == 0 and summary.lead_in_ticks == 100  # the tick Ctrl-C hit counts
+    assert all(r.lead_in for r in records)
+    assert not bus.connected
+    assert torque(simbus, arm) == [0] * 8
+    np.testing.assert_allclose(servo_angles(simbus, arm), arm.rest, atol=0.06)
+
+
+def test_overruns_during_the_lead_in_skip_slots_and_keep_the_speed(arm):
+    clock = SlowClock(work=0.025)
+    records: list[TickRecord] = []
+    loop = ControlLoop(arm, circle_targets(arm), config=LoopConfig(lead_in_speed=0.5), clock=clock)
+    loop.on_tick = records.append
+    summary = loop.run(None, lead_in=True)
+    lead, clip = split_lead_in(records)
+    assert len(lead) == summary.lead_in_ticks > 10 and clip
+    assert all(r.time == pytest.approx(r.tick / 100) for r in records)  # on the grid, before and after slot 0
+    assert all(r.overrun for r in lead) and summary.overruns == len(clip)  # the clip's overruns only
+    q = np.array([arm.rest, *(r.q_cmd for r in lead)])
+    slots = np.diff([lead[0].tick - 1, *(r.tick for r in lead)])
+    assert slots[0] == 1 and np.all(slots[1:] >= 2)  # 2.5 slots of work per tick
+    assert np.all(np.abs(np.diff(q, axis=0)) <= 0.5 * slots[:, None] / 100 + 1e-12)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_lead_in_plan_property(seed):
+    """Random moves: every step within speed/rate per joint, the last goal exact, and one slot fewer would not do."""
+    from retarget.control import LeadIn
+
+    rng = np.random.default_rng(seed)
+    for _ in range(50):
+        n_joints = int(rng.integers(1, 8))
+        q0, q1 = rng.uniform(-3, 3, (2, n_joints))
+        speed = rng.uniform(0.05, 3.0, n_joints)
+        rate = float(rng.choice([30.0, 100.0, 500.0]))
+        plan = LeadIn.plan(q0, q1, speed=speed, rate=rate, target=np.zeros(3))
+        n = plan.n_slots
+        q = np.array([q0, *(plan.goal(k).q for k in range(-n, 0))])
+        assert np.all(np.abs(np.diff(q, axis=0)) <= speed / rate + 1e-12)
+        np.testing.assert_array_equal(q[-1], q1)
+        # minimal: with n - 1 slots the raised cosine's largest step would be too fast for the slowest joint
+        worst = np.max(np.abs(q1 - q0) / speed) * rate  # slots at constant speed
+        if worst <= 1:
+            assert n == 0
+        else:
+            assert n >= 2 and np.sin(np.pi / (2 * (n - 1))) * worst > 1
+    still = LeadIn.plan(np.zeros(3), np.full(3, 1e-4), speed=np.full(3, 0.5), rate=100.0, target=np.zeros(3))
+    assert still.n_slots == 0  # within one step at the speed: no lead-in
+    one = LeadIn.plan(np.zeros(2), np.array([1.0, -0.25]), speed=np.full(2, 0.5), rate=100.0, target=np.zeros(3))
+    assert one.n_slots == 315  # ceil(pi / (2 asin(1 / 200))): about pi/2 x the 2 s at constant speed
+    mid = one.goal(-158).q  # the middle of the move, at half way
+    np.testing.assert_allclose(mid, [0.5, -0.125], atol=1e-2)
+
+
+@pytest.mark.parametrize("value", [-0.1, math.nan, math.inf], ids=["negative", "nan", "inf"])
+def test_bad_lead_in_speed(value):
+    with pytest.raises(ConfigError, match=r"--lead-in: Expected a joint speed >= 0 rad/s \(0: no lead-in\)"):
+        LoopConfig(lead_in_speed=value)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 
 import numpy as np
@@ -45,8 +46,9 @@ def test_columns_name_the_joints_and_units(arm):
     cols = telemetry_columns(arm.joint_names)
     assert cols[:6] == ["time_s", "clip_time_s", "tick", "target_x_m", "target_y_m", "target_z_m"]
     assert "waist_cmd_rad" in cols and "wrist_rotate_present_rad" in cols
-    assert cols[-4:] == ["clamped", "velocity_limited", "overrun", "bus_retries"]
-    assert len(cols) == len(set(cols)) == 6 + 2 * arm.n_joints + 10
+    assert cols[-5:-1] == ["clamped", "velocity_limited", "overrun", "bus_retries"]
+    assert cols[-1] == "lead_in"  # the flag of the lead-in's rows, last
+    assert len(cols) == len(set(cols)) == 6 + 2 * arm.n_joints + 11
 
 
 @pytest.mark.parametrize("present", [True, False], ids=["bus", "dry-run"])
@@ -70,7 +72,18 @@ def test_row_values(arm, present):
     assert float(row["tick_ms"]) == pytest.approx(0.92)
     assert float(row["bus_ms"]) == pytest.approx(0.8)
     assert (row["clamped"], row["velocity_limited"], row["overrun"], row["bus_retries"]) == ("1", "0", "1", "2")
+    assert row["lead_in"] == "0"
     assert not out.closed  # a stream given by the caller stays open
+
+
+def test_lead_in_rows_are_flagged(arm):
+    out = io.StringIO()
+    lead = dataclasses.replace(record(arm, present=True), tick=-3, time=-0.03, clip_time=0.0, lead_in=True)
+    with TelemetryWriter(out, arm.joint_names) as telemetry:
+        telemetry(lead)
+        telemetry(record(arm, present=True))
+    rows = list(csv.DictReader(io.StringIO(out.getvalue())))
+    assert [(r["tick"], r["time_s"], r["lead_in"]) for r in rows] == [("-3", "-0.030000", "1"), ("7", "0.070000", "0")]
 
 
 def test_one_row_per_tick_flushed_as_it_goes(arm, tmp_path):
