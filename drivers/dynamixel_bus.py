@@ -17,13 +17,20 @@ connect():
      (the servo's own second line of defence), Velocity Limit, Return Delay Time; then Profile Acceleration and
      Profile Velocity (RAM);
      Status Return Level goes back to 2 first, so every write is acknowledged;
+     a servo found under torque (an arm left holding by shutdown HOLD) whose EEPROM must change goes limp only
+     for its own EEPROM writes: torque off, write, Goal Position = where it is, torque on (a warning names the
+     servo and the registers); a shadow never goes limp together with its primary;
   4. check every shadow reads the same angle as its primary (else they would fight under torque), set each
      Goal Position to its joint's present angle (so enabling torque does not jump), then torque on, all or
-     nothing.
+     nothing.  Present Position read with torque off counts whole turns; torque on in position mode resets it
+     into 0..4095 (e-Manual, Present Position(132)), so the hold goal is the reading modulo 4096
+     (:func:`hold_tick`).
 
 Faults: a servo that stays silent after ``retries`` repeats, or raises a hardware alert, makes the bus refuse
 further goals and raises BusError naming it; close() (or leaving the ``with`` block) then runs the shutdown
 sequence.  ``recover=True`` instead reboots an alerting servo and configures it again (at most 3 times each).
+Shutdown REST after a hardware error: joints with a faulted servo are not commanded, the others go to rest,
+then torque goes off everywhere; a silent joint servo turns torque off at once (see ``_move_to_rest``).
 
 Direction is applied by the servo (Drive Mode bit 0), as Interbotix does: every servo of a joint gets the same
 register value ``2048 + offset + q / RAD_PER_TICK`` in the same SYNC_WRITE and a reversed servo turns its shaft
@@ -283,7 +290,8 @@ class DynamixelBus:
                 self._configure(s)
             self.set_torque(True)
         except BaseException:
-            # set_torque is all or nothing, so no servo is left under torque: just free the port
+            # set_torque is all or nothing, so no servo is left under torque but those found holding (HOLD): they
+            # keep holding where they are; just free the port
             port.closePort()
             self._link = None
             raise
@@ -391,7 +399,9 @@ class DynamixelBus:
             return
         if self._faulted:
             raise BusError(f"bus is faulted ({self._faulted}); close it and connect again")
-        ticks = self._read_joint_ticks(check_active=False)
+        # with torque off Present Position counts turns (a joint turned by hand past 180 deg reads 4196); torque on
+        # in position mode resets it into 0..4095 (e-Manual, Present Position(132)): hold the single-turn angle
+        ticks = self._read_joint_ticks(check_active=False) % units.TICKS_PER_REV
         self._check_shadows(ticks)
         primary = self._primary_index
         q = np.clip(units.ticks_to_rad(ticks[primary], offset=self._servo_offset[primary]), self.lower, self.upper)
@@ -399,7 +409,7 @@ class DynamixelBus:
         if self._gripper is not None:
             g = self._gripper
             t = units.signed32(link.read_register(g.id, g.model.register("Present Position")))
-            link.write_register(g.id, g.model.register("Goal Position"), int(np.clip(t, g.min_tick, g.max_tick)))
+            link.write_register(g.id, g.model.register("Goal Position"), hold_tick(t, g.min_tick, g.max_tick))
         enabled: list[ServoPlan] = []
         try:
             for s in self.servos:
@@ -460,7 +470,7 @@ class DynamixelBus:
         """Refuse torque when a shadow disagrees with its primary: under torque the two would fight (overload)."""
         q = units.ticks_to_rad(ticks, offset=self._servo_offset)
         q_primary = q[self._primary_index][self._servo_joint]
-        off = np.abs(q - q_primary)
+        off = np.abs((q - q_primary + np.pi) % (2.0 * np.pi) - np.pi)  # on the circle: 4095 and 1 are 2 ticks apart
         bad = [s for s, d in zip(self._joint_servos, off, strict=True) if d > self.shadow_tolerance]
         if bad:
             detail = ", ".join(
@@ -580,12 +590,27 @@ class DynamixelBus:
                 changes[name] = (current, value)
         if changes:
             torque = s.model.register("Torque Enable")
-            if link.read_register(s.id, torque):
-                log.warning("servo %d: turning torque off to write its EEPROM settings", s.id)
+            holding = bool(link.read_register(s.id, torque))
+            if holding:  # an arm left holding (shutdown HOLD): this servo goes limp only for its own EEPROM writes
+                log.warning(
+                    "servo %d: turning torque off to write its EEPROM settings (%s), then on again where it is",
+                    s.id,
+                    ", ".join(f"{name} {current} -> {value}" for name, (current, value) in changes.items()),
+                )
                 link.write_register(s.id, torque, 0)
-            for name, (current, value) in changes.items():  # Operating Mode first: changing it resets the profile
-                log.info("servo %d: %s %d -> %d", s.id, name, current, value)
-                link.write_register(s.id, s.model.register(name), value)
+            try:
+                for name, (current, value) in changes.items():  # Operating Mode first: changing it resets the profile
+                    log.info("servo %d: %s %d -> %d", s.id, name, current, value)
+                    link.write_register(s.id, s.model.register(name), value)
+            except BaseException:
+                if holding:  # it was holding the arm: holding where it is beats dropping it
+                    try:
+                        self._hold_here(s)
+                    except BusError as exc:
+                        log.error("servo %d: torque back on after a failed EEPROM write: %s", s.id, exc)
+                raise
+            if holding:
+                self._hold_here(s)
         for name, value in ram.items():
             link.write_register(s.id, s.model.register(name), value)
 
@@ -598,12 +623,16 @@ class DynamixelBus:
                 raise BusError("did not come back after REBOOT", ids=[s.id])
             self.clock.sleep_until(self.clock.now() + 0.05)
         self._configure(s)
-        # goal = present, then torque on: the rebooted servo holds where it is
-        present = units.signed32(link.read_register(s.id, s.model.register("Present Position")))
-        link.write_register(s.id, s.model.register("Goal Position"), int(np.clip(present, s.min_tick, s.max_tick)))
-        link.write_register(s.id, s.model.register("Torque Enable"), 1)
+        self._hold_here(s)  # the rebooted servo holds where it is
         self._hardware_errors.pop(s.id, None)
         log.warning("servo %d rebooted and configured again", s.id)
+
+    def _hold_here(self, s: ServoPlan) -> None:
+        """Goal Position = the servo's present position (single-turn, clipped to its limits), then torque on."""
+        link = self.link
+        present = units.signed32(link.read_register(s.id, s.model.register("Present Position")))
+        link.write_register(s.id, s.model.register("Goal Position"), hold_tick(present, s.min_tick, s.max_tick))
+        link.write_register(s.id, s.model.register("Torque Enable"), 1)
 
     def _torque_off_all(self) -> None:
         link = self.link
@@ -619,30 +648,66 @@ class DynamixelBus:
             raise BusError("could not turn torque off", ids=failed)
 
     def _move_to_rest(self) -> None:
-        """Slow profile, one goal at the rest pose, wait (on the bus clock) until reached or timed out."""
+        """Slow profile, one goal at the rest pose, wait (on the bus clock) until reached or timed out.
+
+        Policy after a hardware error (a faulted servo keeps the Alert bit in every status packet, so this
+        path reads without raising on alerts and records every alerting servo instead):
+
+        * a joint with ANY faulted servo is not commanded: its servos get no new goal and keep the one they
+          had (a servo whose error is in its Shutdown mask has cut its own torque and cannot move; a healthy
+          shadow beside it holds where it was, and is never asked to carry the joint alone through a move);
+        * every other joint moves to rest at ``rest_speed``; a servo that faults during the move freezes its
+          joint (its healthy servos get their own present position as goal) and the others carry on;
+        * the wait ends when the commanded joints are at rest (or after ``rest_timeout``); close() then turns
+          torque off on every servo, faulted joints included;
+        * a joint servo that stays silent raises BusError here: without its reading the arm cannot be
+          watched, so close() falls back to turning torque off at once.
+        """
         link = self.link
-        link.alerts.clear()
         self._faulted = None  # a fault stops goals from the caller, not the shutdown sequence
         rest = np.clip(self.arm.rest, self.lower, self.upper)
-        present = self._read_positions_unchecked()
+        ticks = self._read_ticks_for_shutdown()
+        held = self._faulted_joints()
+        if held:
+            log.warning(
+                "%s: not moving %s to rest (faulted servo %s); the other joints go to rest, then torque off",
+                self.arm.name,
+                ", ".join(self.arm.joint_names[j] for j in sorted(held)),
+                ", ".join(map(str, sorted(self._hardware_errors))),
+            )
+        moving = [j for j in range(self.arm.n_joints) if j not in held]
+        if not moving:
+            return
+        servos = [s for s in self._joint_servos if s.joint not in held]
+        present = self._primary_angles(ticks)
         if self.profile is Profile.TIME:
             # ramps of a quarter of the move each: the cruise speed is distance / (0.75 * duration)
-            duration = float(np.max(np.abs(rest - present))) / (0.75 * self.rest_speed)
+            duration = float(np.max(np.abs(rest - present)[moving])) / (0.75 * self.rest_speed)
             pv = int(min(units.seconds_to_ms(duration), MAX_PROFILE_MS))
-            values = dict.fromkeys((s.id for s in self._joint_servos), pv)
+            values = dict.fromkeys((s.id for s in servos), pv)
             accel = dict.fromkeys(values, pv // 4)
             link.sync_write(108, 4, {i: _u32(v) for i, v in accel.items()})
         else:
             values = {
                 s.id: int(units.rad_s_to_velocity_units(min(self.rest_speed, self.arm.joints[s.joint].max_velocity)))
-                for s in self._joint_servos
+                for s in servos
             }
         link.sync_write(112, 4, {i: _u32(v) for i, v in values.items()})
-        self._send_goals(link, rest.tolist())
-        self._last_goal = rest.tolist()
+        goals = {}  # as _send_goals encodes them, for the commanded joints' servos only
+        for s in servos:
+            goals[s.id] = _u32(_clip_tick(round(units.CENTER_TICK + s.offset + rest[s.joint] / units.RAD_PER_TICK), s))
+        link.sync_write(_GOAL_POSITION, 4, goals)
         start = self.clock.now()
         while True:
-            err = float(np.max(np.abs(self._read_positions_unchecked() - rest)))
+            ticks = self._read_ticks_for_shutdown()
+            newly = self._faulted_joints() - held
+            if newly:
+                self._freeze_joints(newly, ticks)
+                held |= newly
+                moving = [j for j in moving if j not in newly]
+                if not moving:
+                    return
+            err = float(np.max(np.abs(self._primary_angles(ticks) - rest)[moving]))
             if err <= self.rest_tolerance:
                 log.info("%s reached its rest pose in %.2f s", self.arm.name, self.clock.now() - start)
                 return
@@ -653,14 +718,68 @@ class DynamixelBus:
                 return
             self.clock.sleep_until(self.clock.now() + 0.05)
 
-    def _read_positions_unchecked(self) -> np.ndarray:
-        """Like read_positions, but allowed while faulted (the shutdown sequence)."""
-        ticks = self._read_joint_ticks(check_active=False)
+    def _read_ticks_for_shutdown(self) -> np.ndarray:
+        """Present Position of every joint servo ``(n_joint_servos,) int64`` ticks, in ``_joint_servos`` order,
+        without raising on alerts: each newly alerting servo's Hardware Error Status is read and recorded in
+        ``_hardware_errors`` (the shutdown sequence's view of which servos are faulted).  A silent servo raises."""
+        link = self.link
+        replies = link.group_read(self._position_requests, fast=self._use_fast, what="Present Position")
+        new = sorted(i for i in link.alerts if i not in self._hardware_errors)
+        link.alerts.clear()
+        for dxl_id in new:
+            s = self._servo(dxl_id)
+            bits = link.read_register(dxl_id, s.model.register("Hardware Error Status"))
+            if bits:  # an Alert bit with no error left is not a fault
+                self._hardware_errors[dxl_id] = names = hardware_error_names(bits) or (f"error bits 0x{bits:02x}",)
+                log.error("servo %d: hardware error during shutdown: %s", dxl_id, ", ".join(names))
+        link.alerts.clear()
+        return np.array(
+            [int.from_bytes(replies[dxl_id].data, "little", signed=True) for dxl_id in self._position_requests],
+            dtype=np.int64,
+        )
+
+    def _faulted_joints(self) -> set[int]:
+        """Joints with at least one servo in hardware error."""
+        return {s.joint for s in self._joint_servos if s.id in self._hardware_errors}
+
+    def _freeze_joints(self, joints: set[int], ticks: np.ndarray) -> None:
+        """Goal = own present position for the healthy servos of ``joints``: they stop where they are."""
+        hold = {
+            s.id: _clip_tick(int(ticks[k]), s)
+            for k, s in enumerate(self._joint_servos)
+            if s.joint in joints and s.id not in self._hardware_errors
+        }
+        log.warning(
+            "%s: a servo faulted during the rest move: %s stop%s where %s",
+            self.arm.name,
+            ", ".join(self.arm.joint_names[j] for j in sorted(joints)),
+            "s" if len(joints) == 1 else "",
+            "it is" if len(joints) == 1 else "they are",
+        )
+        if hold:
+            self.link.sync_write(_GOAL_POSITION, 4, {i: _u32(t) for i, t in hold.items()})
+
+    def _primary_angles(self, ticks: np.ndarray) -> np.ndarray:
+        """Joint angles ``(n_joints,) float64`` rad from the primaries' ticks in ``ticks`` (``_joint_servos`` order)."""
         return units.ticks_to_rad(ticks[self._primary_index], offset=self._servo_offset[self._primary_index])
+
+
+def hold_tick(present: int, lo: int, hi: int) -> int:
+    """The Goal Position that holds a position-mode servo where it is when its torque turns on.
+
+    ``present``: Present Position read with torque off, signed ticks; it counts whole turns then, and torque on
+    in position mode resets it into 0..4095, so it is taken modulo 4096 first (4196 -> 100, -100 -> 3996; the
+    Homing Offset is 0 on this bus).  Then clipped to the servo's Min/Max Position Limit ``lo..hi``.
+    """
+    return min(max(int(present) % units.TICKS_PER_REV, lo), hi)
+
+
+def _clip_tick(tick: int, s: ServoPlan) -> int:
+    return min(max(int(tick), s.min_tick), s.max_tick)
 
 
 def _u32(value: int | np.integer) -> bytes:
     return int(value).to_bytes(4, "little", signed=True)
 
 
-__all__: Sequence[str] = ("DynamixelBus", "Profile", "ServoPlan", "ServoState", "plan_servos")
+__all__: Sequence[str] = ("DynamixelBus", "Profile", "ServoPlan", "ServoState", "hold_tick", "plan_servos")
