@@ -20,7 +20,7 @@ from drivers.control_table import ALERT_BIT, HardwareError, StatusError
 from retarget.clock import VirtualClock
 from sim.faults import Faults, ReplyFaults
 from sim.servo import PULSES_PER_S2_PER_ACCEL_UNIT, PULSES_PER_S_PER_VELOCITY_UNIT
-from tests.sim.conftest import close_rig, open_rig
+from tests.sim.conftest import TRANSPORTS, close_rig, open_rig
 
 GOAL, PRESENT, TORQUE = 116, 132, 64
 
@@ -39,10 +39,17 @@ def test_ping_reports_model_numbers(rig):
         assert (model, result, error) == (1020, COMM_SUCCESS, 0)
 
 
-def test_ping_of_each_model(rig):
-    for dxl_id, name, number in ((1, "XL430-W250", 1060), (2, "XL330-M288", 1200), (3, "XM540-W270", 1120)):
-        rig.bus._servos[dxl_id - 1] = sim.SimServo(name, dxl_id, clock=rig.clock, baud=1_000_000)
-        assert rig.ph.ping(rig.port, dxl_id)[:2] == (number, COMM_SUCCESS)
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_ping_of_each_model(transport):
+    models = ((1, "XL430-W250", 1060), (2, "XL330-M288", 1200), (3, "XM540-W270", 1120), (4, "XM430-W350", 1020))
+    clock = VirtualClock()
+    bus = sim.SimBus([sim.SimServo(name, i, clock=clock, baud=1_000_000) for i, name, _ in models], clock=clock)
+    rig, resource = open_rig(bus, transport)  # the servos exist before any server thread reads them
+    try:
+        for dxl_id, _, number in models:
+            assert rig.ph.ping(rig.port, dxl_id)[:2] == (number, COMM_SUCCESS)
+    finally:
+        close_rig(rig, resource)
 
 
 def test_eeprom_write_with_torque_on_is_an_access_error(rig):
