@@ -15,7 +15,7 @@ import pytest
 import sim
 from drivers import units
 from drivers.control_table import HardwareError, Instruction
-from drivers.dynamixel_bus import hold_tick
+from drivers.dynamixel_bus import Profile, hold_tick
 from retarget.arm import Arm
 from retarget.bus import ShutdownMode
 from retarget.errors import BusError
@@ -56,11 +56,12 @@ def to_home(bus, arm: Arm, clock) -> None:
 # ---------------------------------------------------------------------------------------------- REST after a fault
 
 
+@pytest.mark.parametrize("profile", [Profile.VELOCITY, Profile.TIME], ids=["velocity-profile", "time-profile"])
 @pytest.mark.parametrize("seen", [True, False], ids=["raised-before-close", "found-by-close"])
 def test_rest_after_an_overload_moves_the_healthy_joints_then_torque_off(
-    make_bus, url, sim_bus, arm, clock, caplog, seen
+    make_bus, url, sim_bus, arm, clock, caplog, seen, profile
 ):
-    bus = make_bus(url, shutdown=ShutdownMode.REST, dt=0.02)
+    bus = make_bus(url, shutdown=ShutdownMode.REST, dt=0.02, profile=profile)
     bus.connect()
     to_home(bus, arm, clock)
     sim_bus.servo(8).trigger_hardware_error(HardwareError.OVERLOAD)  # the (unloaded) wrist_rotate servo
