@@ -274,6 +274,12 @@ class UdpSource(_ThreadSource):
 
     def __init__(self, gate: TargetGate, host: str = DEFAULT_UDP_HOST, port: int = 0, **kwargs: object):
         super().__init__(gate, **kwargs)
+        if not is_loopback(host):  # said before binding, so the warning stands even when the bind fails
+            log.warning(
+                "UDP target input on %s:%d is NOT loopback: anyone who can reach this address can move the arm",
+                host,
+                port,
+            )
         family = socket.AF_INET6 if ":" in host else socket.AF_INET
         sock = socket.socket(family, socket.SOCK_DGRAM)
         try:
@@ -286,11 +292,6 @@ class UdpSource(_ThreadSource):
         self._sock = sock
         self.address: tuple[str, int] = sock.getsockname()[:2]
         self.datagrams = 0
-        if not is_loopback(host):
-            log.warning(
-                "UDP target input is bound to %s:%d, NOT loopback: anyone who can reach this address can move the arm",
-                *self.address,
-            )
 
     def _run(self) -> None:
         limit = self.gate.max_bytes
