@@ -18,7 +18,9 @@ wrapped into ``[start, end)`` with ``loop``).  In its slot a tick:
    keeps a velocity-limited tick from letting IK wander off), within
    ``ik_iterations`` sweeps (the per-tick budget), with the mapping's per-joint
    weights;
-3. limits each joint's step to ``velocity_scale x max_velocity x elapsed``;
+3. limits each joint's step to ``velocity_scale x max_velocity / rate`` (one
+   slot's worth, also after an overrun skipped slots: the arm then lags its
+   targets and catches up within the limit, it never jumps);
 4. sends the goals in one ``bus.write_goals``;
 5. reads the present positions back with ``bus.read_positions``.
 
@@ -579,11 +581,13 @@ def run_ticks(
                     result = solve(target, array(seed), rotation)
                     goal = result.q.tolist()
                     error, sweeps, converged = result.error, result.iterations, result.converged
-                # each joint's step limited to vstep * elapsed, then the pose clamped to the limits
+                # each joint's step limited to one slot's vstep, then the pose clamped to the limits; never
+                # vstep * elapsed: after a stall (skipped slots) that would be one jump of the whole stall's
+                # travel, which the servos then run at full speed.  The arm lags and catches up instead.
                 vlimited = False
                 q_next = []
-                for x, x0, s, (lo, hi) in zip(goal, q, vsteps, bounds, strict=True):
-                    d, m = x - x0, s * elapsed
+                for x, x0, m, (lo, hi) in zip(goal, q, vsteps, bounds, strict=True):
+                    d = x - x0
                     if d > m:
                         d, vlimited = m, True
                     elif d < -m:

@@ -507,6 +507,64 @@ def test_overruns_during_the_lead_in_skip_slots_and_keep_the_speed(arm):
     assert np.all(np.abs(np.diff(q, axis=0)) <= 0.5 * slots[:, None] / 100 + 1e-12)
 
 
+class StallClock(VirtualClock):
+    """A virtual clock that jumps ``stall`` seconds once, at its first reading at or after ``at``: a bus call
+    stalled inside a tick (retries after a lost status packet, a USB hiccup).  Shared with the simulator, so
+    the servos live through the stall too."""
+
+    def __init__(self, *, at: float, stall: float):
+        super().__init__()
+        self.at, self.stall, self.stalled = at, stall, False
+
+    def now(self) -> float:
+        if not self.stalled and self._t >= self.at:
+            self.stalled = True
+            self._t += self.stall
+        return self._t
+
+
+@pytest.mark.parametrize(
+    ("lead_in_speed", "at"), [(0.0, 1.0), (0.5, 0.3)], ids=["stall-in-the-clip", "stall-in-the-lead-in"]
+)
+def test_a_stalled_bus_call_does_not_let_the_goals_jump(arm, lead_in_speed, at):
+    """0.3 s stall in one tick: the loop skips the missed slots (no drift) but every goal stays within one
+    slot of ``velocity_scale x max_velocity`` of the last, so the arm lags and catches up within the limit
+    (the goals once jumped by the whole stall's travel, 30 x the limit, and the servos ran at full speed).
+    The servos' read-back obeys it too: the present positions, over 10 ticks, move no faster than the limit
+    (timed by the clock at each read-back), give or take one tick's step (with its Profile Velocity at the
+    joint's full speed a servo runs each step in a burst just after the write, so a read may come before or
+    after it) and 2 position ticks of quantisation."""
+    import sim
+    from drivers import DynamixelBus
+
+    scale, rate = 0.2, 100.0
+    clock = StallClock(at=at, stall=0.3)
+    simbus = sim.SimBus.from_arm(arm, clock=clock, faults=sim.Faults(wire=True))
+    url = sim.attach(simbus)
+    records: list[tuple[TickRecord, float]] = []
+    config = LoopConfig(rate=rate, velocity_scale=scale, lead_in_speed=lead_in_speed)
+    loop = ControlLoop(arm, circle_targets(arm), config=config, clock=clock)
+    loop.on_tick = lambda r: records.append((r, clock.now()))  # now: just after the read-back
+    try:
+        summary = run_on_bus(loop, DynamixelBus(arm, url, clock=clock, shutdown="hold"))
+    finally:
+        sim.unregister(url.removeprefix("sim://@"))
+    ticks = np.array([r.tick for r, _ in records])
+    gaps = np.diff(ticks)
+    k = int(np.argmax(gaps))
+    assert clock.stalled and gaps[k] >= 25 and records[k][0].overrun and np.all(np.delete(gaps, k) == 1)
+    assert records[k][0].lead_in == (lead_in_speed > 0) and summary.ticks > 100  # stalled where meant, ran on
+    q = np.array([r.q_cmd for r, _ in records])
+    limit = scale * arm.max_velocity / rate  # rad per tick, whatever slots passed
+    assert np.all(np.abs(np.diff(q, axis=0)) <= limit + 1e-12)
+    assert np.any(np.abs(q[k + 1] - q[k]) > 0.99 * limit)  # it moved on at the limit right after the stall
+    present = np.array([r.q_present for r, _ in records])
+    read_at = np.array([t for _, t in records])
+    moved = np.abs(present[10:] - present[:-10])
+    allowed = scale * arm.max_velocity * (read_at[10:] - read_at[:-10])[:, None] + limit + 2 * 2 * np.pi / 4096
+    assert np.all(moved <= allowed)
+
+
 @pytest.mark.parametrize("seed", range(5))
 def test_lead_in_plan_property(seed):
     """Random moves: every step within speed/rate per joint, the last goal exact, and one slot fewer would not do."""
