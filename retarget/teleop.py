@@ -5,12 +5,13 @@ the interactive keys) into the per-tick target of the control loop (:class:`reta
 
 - accepted targets queue in arrival order; the follower steers toward the oldest one it has not passed,
   so a stream that comes faster than the arm moves is still visited *in order*;
-- a **setpoint** walks from the tool point toward that target at most ``max_speed`` metres per second
-  (the Cartesian speed limit; the loop then limits each joint to its max velocity), and the IK solves
-  for the setpoint each tick;
+- a **setpoint** walks from the tool point toward that target at most ``max_speed / rate`` metres per
+  moving tick (the Cartesian speed limit; slots spent holding, or skipped by an overrun, give no extra
+  step; the loop then limits each joint to its max velocity), and the IK solves for the setpoint each tick;
 - a target is *passed* when the commanded tool point comes within ``pass_radius`` of it and a newer one
   waits, *reached* when it comes within ``tolerance`` and none waits, and given up as *unreachable* when
-  the commanded tool point has stopped getting closer for ``stall_time`` seconds (the arm is then at the
+  the commanded tool point has stopped getting closer for ``stall_time`` seconds' worth of ticks that ran
+  (slots skipped by an overrun do not count: a bus stall is no stalled arm; the arm is then at the
   nearest point it can reach);
 - with nothing to steer toward (no target yet, the last one reached or given up, or a stale stream) the
   follower returns ``None``: the loop **holds** the commanded pose and runs no IK at all;
@@ -158,7 +159,7 @@ class Follower:
         self.stale_events = 0  #: times the stream went stale
         self.skipped = 0  #: targets superseded (older than ``max_lag`` behind the newest) and not visited
         self._best = math.inf
-        self._best_tick = 0
+        self._since_best = 0  # ticks observed at the goal since the cost last improved (not slots: see observe)
         self._last_tick = -1
 
     # ------------------------------------------------------------------ lifecycle
@@ -239,11 +240,13 @@ class Follower:
                 return None
             self.goal = self._queue.popleft()
             self.setpoint = self.tool.copy()  # restart the walk where the arm is commanded to be
-            self._best, self._best_tick = math.inf, tick
+            self._best, self._since_best = math.inf, 0
         self.phase = Phase.MOVING
-        elapsed = tick - self._last_tick if self._last_tick >= 0 else 1
         self._last_tick = tick
-        self.setpoint = step_toward(self.setpoint, self.goal.position, self._step * elapsed)
+        # one slot's step per moving tick, whatever slots passed since the last one: after a hold, a stale
+        # stream or a wait, that gap is time spent standing, and after an overrun the loop's joint limit is one
+        # slot too, so a longer step would only let the setpoint (and the IK) run ahead of the speed limit
+        self.setpoint = step_toward(self.setpoint, self.goal.position, self._step)
         return self.setpoint, self.goal.rotation, False
 
     def observe(self, tick: int, q_cmd: np.ndarray, q_present: np.ndarray | None = None) -> None:
@@ -260,8 +263,10 @@ class Follower:
         if d <= radius and angle <= self.orientation_tolerance:
             self._leave(True, tick, d)
         elif cost < self._best - self.stall_distance:
-            self._best, self._best_tick = cost, tick
-        elif tick - self._best_tick >= self.stall_ticks:
+            self._best, self._since_best = cost, 0
+        elif (since := self._since_best + 1) < self.stall_ticks:  # ticks, not slots: a bus stall is no stalled arm
+            self._since_best = since
+        else:
             log.info("target %d unreachable: holding %.1f mm, %.1f deg from it", goal.seq, d * 1e3, math.degrees(angle))
             self._leave(False, tick, d)
 

@@ -181,6 +181,78 @@ def test_cartesian_speed_limit(arm, session, max_speed):
     assert steps.max() > 0.9 * max_speed / 100  # and it does move at the limit
 
 
+@pytest.mark.parametrize(
+    ("first", "at", "kwargs"),
+    [("0.30 0 0.20", 900, {}), ("0.45 0.1 0.25", 500, {"timeout": 4.0})],
+    ids=["after-a-hold", "after-a-stale-stream"],
+)
+def test_cartesian_speed_limit_holds_after_standing_still(arm, session, first, at, kwargs):
+    """A first target reached (or given up when the stream went stale), the arm standing still, then a
+    target about 0.17 m away: the first moving tick gets one tick's step, not the whole pause's (the setpoint
+    once jumped 0.17 m in one tick and the tool ran at 2.4 m/s with a 5 cm/s limit).
+
+    Tolerances: the commanded tool point is the FK of an IK solution within ``ik_tolerance`` (1 mm) of the
+    setpoint, so it may lead or trail the setpoint by that at each end of a window: ``2 x 1 mm``; the servos'
+    read-back adds position quantisation and the servos' lag behind their goals: 1 mm more."""
+    max_speed, rate, ik_tolerance = 0.05, 100.0, LoopConfig().ik_tolerance
+    b = np.array([0.25, 0.15, 0.28])
+
+    def feed(r: TickRecord, source):
+        if r.tick == 0:
+            source.feed(first)
+        if r.tick == at - 1:  # taken at tick `at`
+            source.feed(" ".join(map(str, b)))
+
+    result, records, _, _, _ = session(Source, max_ticks=at + 500, on_tick=feed, max_speed=max_speed, **kwargs)
+    assert [r.tick for r in records] == list(range(len(records)))  # one slot apart: no overruns here
+    left = result.visits[0].tick
+    assert left < at - 90 and all(np.array_equal(r.q_cmd, records[left].q_cmd) for r in records[left:at])  # still
+    assert np.linalg.norm(b - wx250s_tool(records[at - 1].q_cmd)) > 0.15
+    assert len(result.visits) == 2 and result.visits[1].reached
+    step = max_speed / rate
+    # the setpoint (the target of each moving tick) walks one step per tick at most, from where the arm stood
+    setpoints = [wx250s_tool(records[at - 1].q_cmd)] + [r.target for r in records[at : result.visits[1].tick + 1]]
+    walk = np.linalg.norm(np.diff(setpoints, axis=0), axis=1)
+    assert walk.max() <= step + 1e-12 and walk.max() > 0.9 * step
+    for name, slack in (("q_cmd", 2 * ik_tolerance), ("q_present", 2 * ik_tolerance + 1e-3)):
+        tool = np.array([wx250s_tool(getattr(r, name)) for r in records[at - 1 :]])
+        for window in (1, 10, 50):  # ticks
+            moved = np.linalg.norm(tool[window:] - tool[:-window], axis=1)
+            assert moved.max() <= max_speed * window / rate + slack, (name, window, moved.max())
+
+
+def test_a_moving_tick_after_skipped_slots_steps_one_tick(arm):
+    """Slots skipped by an overrun (or spent holding) give the setpoint no extra step: the loop's joint limit
+    is one slot per tick too, so a longer step would only run the IK ahead of the speed limit."""
+    clock = VirtualClock()
+    source = Source(TargetGate(TargetBounds.for_arm(arm), clock=clock))
+    follower = Follower(arm, source, clock=clock, rate=100.0, max_speed=0.1)
+    follower.start(arm.rest)
+    source.feed("0.3 0 0.2")
+    p0 = follower.setpoint.copy()
+    p1, _, _ = follower.target_at(0, 0.0)
+    p2, _, _ = follower.target_at(40, 0.4)  # 39 slots skipped
+    assert np.linalg.norm(p1 - p0) == pytest.approx(0.001) and np.linalg.norm(p2 - p1) == pytest.approx(0.001)
+
+
+def test_skipped_slots_do_not_count_toward_giving_a_target_up(arm):
+    """``stall_time`` counts ticks that ran: 30 slots skipped by a bus stall while the arm closes in on a
+    target do not make it unreachable at the next tick (they once did, 0.25 s = 25 slots)."""
+    clock = VirtualClock()
+    source = Source(TargetGate(TargetBounds.for_arm(arm), clock=clock))
+    follower = Follower(arm, source, clock=clock, rate=100.0, max_speed=1.0, stall_time=0.25)
+    follower.start(arm.rest)
+    goal = follower.tool + np.array([0.005, 0.0, 0.0])  # 5 mm: one tick's step, beyond the 1.5 mm tolerance
+    source.feed(" ".join(f"{x:.6f}" for x in goal))
+    for tick in [0, 31, *range(32, 55)]:  # the best at 0, 29 slots skipped, then 24 ticks without progress
+        follower.target_at(tick, tick / 100)
+        follower.observe(tick, arm.rest)  # the arm makes no progress
+        assert follower.goal is not None and not follower.visits, tick
+    follower.target_at(55, 0.55)
+    follower.observe(55, arm.rest)  # the 25th tick without progress
+    assert [(v.reached, v.tick) for v in follower.visits] == [(False, 55)]
+
+
 # ------------------------------------------------------------------------------------------------ streams
 
 
