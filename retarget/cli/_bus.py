@@ -16,12 +16,15 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from retarget.errors import ConfigError
 
 if TYPE_CHECKING:
     from retarget.arm import Arm
     from retarget.bus import Bus
     from retarget.clock import Clock
+    from retarget.control import LoopConfig
 
 SHUTDOWN_MODES = ("hold", "rest", "off")
 
@@ -104,20 +107,39 @@ class BusSetup:
             sim.unregister(self.registered)
 
 
-def build_bus(args: argparse.Namespace, arm: Arm) -> BusSetup:
+def servo_limits(arm: Arm, config: LoopConfig | None) -> dict[str, float | None]:
+    """The driver's own speed limits for a run with ``config``, its second line of defence behind the loop's.
+
+    ``dt = 1 / rate``: ``write_goals`` limits every joint's step per call to ``max_velocity * dt``.
+    ``profile_velocity = velocity_scale x max_velocity`` rad/s: the servos' own profile then runs no faster
+    than ``--velocity-scale`` allows, whatever goal reaches them.  The driver takes one value for every joint
+    (capped by each joint's own max velocity), so an arm whose joints differ gets its fastest joint's cap;
+    the loop still limits each joint to its own.  ``None`` (a velocity scale of 1): each joint's max velocity.
+    Nothing without a config.
+    """
+    if config is None:
+        return {}
+    scale = config.velocity_scale
+    profile_velocity = None if scale >= 1.0 else scale * float(np.max(arm.max_velocity))
+    return {"dt": 1.0 / config.rate, "profile_velocity": profile_velocity}
+
+
+def build_bus(args: argparse.Namespace, arm: Arm, config: LoopConfig | None = None) -> BusSetup:
     """The driver on ``--port``; for a simulated port, the in-process SimBus and the clock shared with it.
 
     No ``--port``: every servo of the arm simulated in process, wire-time model on.  ``sim://…``: the
     simulator the URL describes, built here so the loop can share its clock (``--fast`` adds
-    ``clock=virtual``).  A real port runs on the monotonic clock.
+    ``clock=virtual``).  A real port runs on the monotonic clock.  With the run's ``config`` the driver
+    also limits speed itself (:func:`servo_limits`).
     """
     from drivers import DynamixelBus
     from retarget.clock import MonotonicClock, VirtualClock
 
+    limits = servo_limits(arm, config)
     port: str | None = args.port
     if not is_sim_port(port):
         clock: Clock = MonotonicClock()
-        return BusSetup(DynamixelBus(arm, port, shutdown=args.shutdown, clock=clock), clock)
+        return BusSetup(DynamixelBus(arm, port, shutdown=args.shutdown, clock=clock, **limits), clock)
 
     import sim
     from sim.transport import bus_from_url
@@ -137,4 +159,5 @@ def build_bus(args: argparse.Namespace, arm: Arm) -> BusSetup:
     if port is None or not port.startswith("sim://@"):
         port = sim.attach(simbus)
         name = port.removeprefix("sim://@")
-    return BusSetup(DynamixelBus(arm, port, shutdown=args.shutdown, clock=simbus.clock), simbus.clock, name)
+    bus = DynamixelBus(arm, port, shutdown=args.shutdown, clock=simbus.clock, **limits)
+    return BusSetup(bus, simbus.clock, name)

@@ -242,7 +242,7 @@ def run(args: argparse.Namespace) -> int:
         max_ticks=number(args.max_ticks, option="--max-ticks", integer=True),
         lead_in_speed=number(args.lead_in, option="--lead-in"),
     )
-    setup = None if args.dry_run else build_bus(args, inputs.arm)
+    setup = None if args.dry_run else build_bus(args, inputs.arm, config)
     telemetry = None
     try:
         clock: Clock = setup.clock if setup is not None else VirtualClock() if args.fast else MonotonicClock()

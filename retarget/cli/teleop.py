@@ -206,7 +206,7 @@ def run(args: argparse.Namespace) -> int:
     if args.interactive and not (sys.stdin.isatty() and sys.stdout.isatty()):
         raise ConfigError("--interactive needs a terminal on stdin and stdout", key="--interactive", value=True)
     arm = load_arm_option(args)
-    setup = build_bus(args, arm)
+    setup = build_bus(args, arm, config)
     source = None
     telemetry = None
     stop = threading.Event()
