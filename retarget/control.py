@@ -32,7 +32,9 @@ present pose to the clip's first pose (:meth:`ControlLoop.initial_pose`, the IK
 solution of the first target) along a straight line in joint space with a
 raised-cosine time profile (at rest at both ends, synchronised so all joints
 arrive together), at a peak speed of ``lead_in_speed`` rad/s per joint (capped
-by ``velocity_scale x max_velocity``).  Its ticks are slots ``-n .. -1`` of the
+by ``velocity_scale x max_velocity``); after an overrun too, each lead-in tick
+steps at most that speed's one slot (:attr:`JointGoal.max_step`): the arm lags
+the plan and catches up as it slows down, never faster.  Its ticks are slots ``-n .. -1`` of the
 same tick loop, before the clip's clock starts (their ``time`` is negative,
 ``TickRecord.lead_in`` is set, ``clip_time`` is the clip's start), so the clip
 still starts at slot 0 with the same bus calls, limits and velocity limiting.
@@ -308,6 +310,9 @@ class JointGoal(NamedTuple):
 
     q: np.ndarray  #: ``(n_joints,)`` rad, the pose to move toward (velocity-limited and clamped like a solution)
     target: np.ndarray  #: ``(3,)`` metres, base frame: what the tick reports as its target
+    #: ``(n_joints,)`` rad, a tighter per-tick step limit than ``velocity_scale x max_velocity / rate`` for this
+    #: tick (a lead-in's own speed, kept after an overrun too); None: the loop's
+    max_step: tuple[float, ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -324,6 +329,9 @@ class LeadIn:
     q_to: np.ndarray
     target: np.ndarray  #: ``(3,)`` metres: the target whose solution ``q_to`` is, reported by the lead-in ticks
     n_slots: int
+    #: rad per joint, ``speed / rate``: each goal's step limit in the loop, so a tick after an overrun moves on at
+    #: the lead-in's speed (and the lead-in catches up on its slower end) instead of jumping to the planned pose
+    max_step: tuple[float, ...] | None = None
 
     @classmethod
     def plan(
@@ -334,15 +342,17 @@ class LeadIn:
         q_to = np.asarray(q_to, dtype=np.float64)
         ratio = float(np.max(np.abs(q_to - q_from) / speed)) * rate  # slots the move takes at constant speed
         n = 0 if ratio <= 1.0 else math.ceil(math.pi / (2.0 * math.asin(1.0 / ratio)))
-        return cls(q_from=q_from, q_to=q_to, target=np.asarray(target, dtype=np.float64), n_slots=n)
+        # a hair above speed / rate: the plan's own steps (<= speed / rate up to rounding) pass unchanged
+        max_step = tuple((np.broadcast_to(speed, q_from.shape) / rate * (1.0 + 1e-9)).tolist())
+        return cls(q_from=q_from, q_to=q_to, target=np.asarray(target, dtype=np.float64), n_slots=n, max_step=max_step)
 
     def goal(self, slot: int) -> JointGoal:
         """The goal of lead-in slot ``slot`` (``-n_slots <= slot < 0``)."""
         i = slot + self.n_slots + 1
         if i >= self.n_slots:
-            return JointGoal(self.q_to, self.target)
+            return JointGoal(self.q_to, self.target, self.max_step)
         s = 0.5 - 0.5 * math.cos(math.pi * i / self.n_slots)
-        return JointGoal(self.q_from + s * (self.q_to - self.q_from), self.target)
+        return JointGoal(self.q_from + s * (self.q_to - self.q_from), self.target, self.max_step)
 
 
 class ClipSource:
@@ -560,6 +570,7 @@ def run_ticks(
                 max_ticks = None if cfg.max_ticks is None else cfg.max_ticks + ticks
             sample = target_at(k, slot_time)
             elapsed = k - last_slot
+            limits = vsteps
             if sample is None:  # hold: no IK, the goals stay
                 holds += 1
                 velocity = zero
@@ -569,6 +580,8 @@ def run_ticks(
                     target = sample.target
                     goal = sample.q.tolist()
                     error, sweeps, converged, clamped = 0.0, 0, True, False
+                    if sample.max_step is not None:
+                        limits = [a if a < b else b for a, b in zip(vsteps, sample.max_step, strict=True)]
                 else:
                     target, rotation, clamped = sample
                     # seed: where the commanded pose is heading at half its current speed (a full-speed
@@ -586,7 +599,7 @@ def run_ticks(
                 # travel, which the servos then run at full speed.  The arm lags and catches up instead.
                 vlimited = False
                 q_next = []
-                for x, x0, m, (lo, hi) in zip(goal, q, vsteps, bounds, strict=True):
+                for x, x0, m, (lo, hi) in zip(goal, q, limits, bounds, strict=True):
                     d = x - x0
                     if d > m:
                         d, vlimited = m, True
