@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -493,3 +494,58 @@ def test_every_bundled_arm_connects_moves_and_rests(name, clock):
         assert set(torques(simulated).values()) == {0}
     finally:
         sim.unregister(f"drivers-arm-{name}")
+
+
+def test_step_limit_starts_from_the_clamped_goal(make_bus, url, sim_bus, arm):
+    """With ``dt`` set the step limit walks from the last goal *after* the joint clamp: a waist held at +20 rad
+    for 400 ticks stays at its upper limit, so asking for the start pose again moves the goal back one step at
+    the next tick (without the clamp the last goal ran to 12.6 rad and the wire stayed pinned at the top tick
+    for about 300 ticks while the caller believed the arm was coming back)."""
+    dt = 0.01
+    bus = make_bus(url, dt=dt, shutdown=ShutdownMode.OFF)
+    bus.connect()
+    start = bus.read_positions()
+    far = start.copy()
+    far[0] = 20.0
+    for _ in range(400):
+        bus.write_goals(far)
+    top = plan_servos(arm)[0].max_tick  # the waist's upper limit, +pi, on the servo's last tick
+    assert goal_writes(sim_bus)[-1][1] == top == 4095 and bus.upper[0] == units.ticks_to_rad(top)
+    step = arm.max_velocity[0] * dt  # 20.5 ticks
+    for k in range(1, 4):
+        bus.write_goals(start)
+        assert goal_writes(sim_bus)[-1][1] == units.rad_to_ticks(bus.upper[0] - k * step), k
+    assert goal_writes(sim_bus)[-1][1] == 4095 - 61  # three steps of 20.5 ticks back
+
+
+def test_a_shadow_with_another_offset_narrows_its_joint(make_bus, clock, arm):
+    """A shadow whose zero offset moves its tick range 250 ticks past 4095: the joint's range is what both
+    servos can reach, so at the joint's upper limit the primary stops 250 ticks short of its own limit and the
+    two servos get the same angle (clipping ticks per servo alone would send the primary 250 ticks further
+    than its shadow: the two would fight, overloaded)."""
+    shoulder = arm.joints[1]
+    primary, shadow = shoulder.servos
+    offset = 4095 + 250 - int(units.rad_to_ticks(shoulder.upper))  # shadow's tick at the arm's upper limit: 4345
+    moved = dataclasses.replace(shoulder, servos=(primary, dataclasses.replace(shadow, offset=offset)))
+    shifted = dataclasses.replace(arm, joints=(arm.joints[0], moved, *arm.joints[2:]))
+    plans = {p.id: p for p in plan_servos(shifted)}
+    assert plans[3].max_tick == 4095 and plans[2].max_tick == units.rad_to_ticks(shoulder.upper)
+    simulated = sim.SimBus.from_arm(shifted, clock=clock)
+    name = f"drivers-shadow-offset-{id(simulated)}"
+    try:
+        bus = make_bus(sim.register(name, simulated), arm=shifted, shutdown=ShutdownMode.OFF)
+        bus.connect()
+        assert bus.upper[1] == pytest.approx(shoulder.upper - 250 * units.RAD_PER_TICK, abs=units.RAD_PER_TICK)
+        q = bus.read_positions()
+        for far in (shoulder.upper, shoulder.upper + 1.0):
+            q[1] = far
+            bus.write_goals(q)
+            last = goal_writes(simulated)[-1]
+            assert (last[2], last[3]) == (plans[2].max_tick - 250, 4095), far
+        q[1] = shoulder.lower + 0.1  # inside both ranges: the same angle, each on its own zero
+        bus.write_goals(q)
+        last = goal_writes(simulated)[-1]
+        assert last[2] == units.rad_to_ticks(q[1]) and last[3] == units.rad_to_ticks(q[1], offset=offset)
+        bus.close()
+    finally:
+        sim.unregister(name)
