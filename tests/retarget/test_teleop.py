@@ -285,17 +285,21 @@ def test_garbage_datagrams_cause_no_motion(arm, session):
     import time
 
     def make(gate):
+        def gated() -> int:  # datagrams the gate has finished with; ``src.datagrams`` counts before the gate runs
+            return gate.accepted + gate.rejects.total
+
         src = UdpSource(gate).start()
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
             for i, m in enumerate(garbage(random.Random(4), 1000)):
                 s.sendto(m, src.address)
                 if i % 50 == 49:  # let the reader keep up: loopback drops datagrams on a full buffer
-                    deadline = time.monotonic() + 5
-                    while src.datagrams <= i and time.monotonic() < deadline:
+                    deadline = time.monotonic() + 5  # only a bound on a hang: the condition is the count
+                    while gated() <= i and time.monotonic() < deadline:
                         time.sleep(0.001)
-        deadline = time.monotonic() + 5
-        while src.datagrams < 1000 and time.monotonic() < deadline:
+        deadline = time.monotonic() + 30
+        while gated() < 1000 and time.monotonic() < deadline:
             time.sleep(0.001)
+        assert (src.datagrams, gated()) == (1000, 1000)
         return src
 
     result, records, simbus, goals0, _ = session(make, max_ticks=50)
@@ -349,6 +353,39 @@ def test_a_fast_live_stream_lags_at_most_max_lag(arm, session):
     assert max(lags) <= 0.25 + 0.01 + 1e-9  # one tick of slack: targets are taken at the next tick
     assert result.reached_target
     np.testing.assert_allclose(wx250s_tool(servo_joint_angles(simbus, arm)), [0.25, 0.099, 0.2], atol=3e-3)
+
+
+@pytest.mark.parametrize(
+    ("times", "goal_index", "skipped"),
+    [
+        ([0.00, 0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.07, 0.08, 0.50], 9, 9),  # all but the newest too old
+        ([0.0, 0.1, 0.2, 0.3, 0.4, 0.5], 3, 3),  # 0.3 and 0.4 are within 0.25 s of the newest: kept, in order
+    ],
+    ids=["straight-to-the-newest", "keeps-the-recent-ones"],
+)
+def test_a_burst_before_one_tick_is_trimmed_to_max_lag(arm, times, goal_index, skipped):
+    """Targets received over more than ``max_lag`` before one tick: those more than ``max_lag`` older than the
+    newest are skipped (counted) at that tick, the follower steers to the oldest one left, and nothing older
+    than ``max_lag`` stays queued."""
+    clock = VirtualClock()
+    source = Source(TargetGate(TargetBounds.for_arm(arm), clock=clock))
+    follower = Follower(arm, source, clock=clock, rate=100.0, max_speed=0.1, max_lag=0.25)
+    follower.start(arm.rest)
+    p0 = follower.setpoint.copy()
+    for k, t in enumerate(times):
+        clock.advance(t - clock.now())
+        source.feed(f"0.3 {-0.1 + 0.02 * k:.2f} 0.2")
+    p1, _, _ = follower.target_at(0, clock.now())
+    assert follower.skipped == skipped and follower.received == len(times)
+    assert follower.goal.seq == goal_index and follower.goal.received == pytest.approx(times[goal_index])
+    assert follower.pending == len(times) - 1 - goal_index  # the ones after the goal, all within max_lag
+    assert [t.seq for t in follower._queue] == list(range(goal_index + 1, len(times)))
+    assert all(times[-1] - t.received <= 0.25 + 1e-9 for t in follower._queue)
+    goal = np.array([0.3, -0.1 + 0.02 * goal_index, 0.2])
+    np.testing.assert_allclose(follower.goal.position, goal)
+    step = p1 - p0  # one tick's step, straight toward the goal
+    assert np.linalg.norm(step) == pytest.approx(0.001)
+    np.testing.assert_allclose(step / np.linalg.norm(step), (goal - p0) / np.linalg.norm(goal - p0), atol=1e-12)
 
 
 # ------------------------------------------------------------------------------------------------ errors
