@@ -176,7 +176,8 @@ class ControlLoop:
     budget (and the mapping's orientation weight when the targets carry
     rotations).  ``on_tick(record)`` is called after every tick;
     ``on_progress(record)`` on the first tick, then about once per
-    ``progress_every`` real seconds (so ``--fast`` runs do not flood the terminal).
+    ``progress_every`` real seconds (so ``--fast`` runs do not flood the terminal), as read from
+    ``progress_time()`` (default ``time.perf_counter``; a test passes a fake one to check the pacing).
     """
 
     def __init__(
@@ -190,6 +191,7 @@ class ControlLoop:
         on_tick: Callable[[TickRecord], None] | None = None,
         on_progress: Callable[[TickRecord], None] | None = None,
         clip_name: str = "",
+        progress_time: Callable[[], float] | None = None,
     ):
         self.arm = arm
         self.targets = targets
@@ -206,6 +208,7 @@ class ControlLoop:
         self.solver = solver
         self.on_tick = on_tick
         self.on_progress = on_progress
+        self.progress_time = progress_time
         self.clip_name = clip_name
         self._stop = threading.Event()
 
@@ -280,6 +283,7 @@ class ControlLoop:
             q_start=q_start,
             on_tick=self.on_tick,
             on_progress=self.on_progress,
+            progress_time=self.progress_time,
             stop=self._stop,
         )
         played = (ticks.last_slot + 1) * self.config.speed / self.config.rate if ticks.last_slot >= 0 else 0.0
@@ -496,13 +500,16 @@ def run_ticks(
     q_start: np.ndarray | None = None,
     on_tick: Callable[[TickRecord], None] | None = None,
     on_progress: Callable[[TickRecord], None] | None = None,
+    progress_time: Callable[[], float] | None = None,
     stop: threading.Event | None = None,
 ) -> TickStats:
     """The fixed-rate tick loop shared by replay and teleop; see the module docstring for one tick.
 
     Runs slots ``first, first + 1, ...`` (``first`` from ``source.start``, default 0; slots < 0 are a
     lead-in before the run's clock starts) until ``source.finished(k)``, ``config.max_ticks`` ticks of
-    slots >= 0, ``stop`` or Ctrl-C.  The start pose is the bus's present positions, else ``q_start``, else
+    slots >= 0, ``stop`` or Ctrl-C.  ``on_progress`` gets the first tick's record, then one whenever
+    ``progress_time()`` (seconds; default the tick's own ``time.perf_counter`` reading) has passed the last
+    report by ``config.progress_every``.  The start pose is the bus's present positions, else ``q_start``, else
     the arm's rest pose.  ``BusError`` propagates (the caller closes the bus).
     """
     cfg = config
@@ -549,7 +556,8 @@ def run_ticks(
     vlim_l, comp_l, bus_l = st.velocity_limited, st.compute, st.bus
     overruns = skipped = holds = 0
     last_slot = first - 1
-    next_progress = 0.0  # perf_counter time of the next progress report
+    next_progress = -math.inf  # progress_time of the next progress report: the first tick reports
+    progress_now = 0.0
     retries_seen = retries_before
     target = np.full(3, np.nan)  # held ticks report the last target
     present = None
@@ -638,7 +646,10 @@ def run_ticks(
             bus_l.append(c2 - c1)
             if observe is not None:
                 observe(k, q_cmd, present)
-            report = on_progress is not None and c2 >= next_progress
+            report = False
+            if on_progress is not None:
+                progress_now = c2 if progress_time is None else progress_time()
+                report = progress_now >= next_progress
             if on_tick is not None or report:
                 record = TickRecord(
                     tick=k,
@@ -661,7 +672,7 @@ def run_ticks(
                 if on_tick is not None:
                     on_tick(record)
                 if report:
-                    next_progress = c2 + cfg.progress_every
+                    next_progress = progress_now + cfg.progress_every
                     on_progress(record)  # type: ignore[misc]
             k = next_k
             ticks += 1

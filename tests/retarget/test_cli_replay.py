@@ -102,11 +102,18 @@ def test_loop_and_telemetry_on_stdout(capsys):
 
 
 def test_progress_lines_on_request(capsys):
+    """The first tick always reports; later lines come at most once a real second, so how many there are
+    depends on the machine's speed: only a bound from the measured run time is checked here (the pacing
+    itself is checked with a fake time source in ``test_control.test_progress_is_paced_by_its_time_source``)."""
+    began = time.perf_counter()
     code, _, err = replay(capsys, "--dry-run", "--fast", "--end", "2.5", "--progress")
+    elapsed = time.perf_counter() - began
     assert code == 0
     progress = [line for line in err.splitlines() if line.startswith("retarget:") and "clip" in line]
-    assert 1 <= len(progress) <= 3  # the first tick, then one a second of real time
-    assert "t=   0.0 s  clip   0.00/2.50 s" in progress[0]
+    assert len(progress) >= 1 and "t=   0.0 s  clip   0.00/2.50 s" in progress[0]
+    assert len(progress) <= 1 + int(elapsed)  # the first tick, then one per second of run time at most
+    shown = [float(re.search(r" t=\s*([0-9.]+) s", line).group(1)) for line in progress]
+    assert shown == sorted(shown) and all(0.0 <= t <= 2.5 for t in shown)
 
 
 @pytest.mark.parametrize("lead_in", ["0.05", "0"], ids=["during-the-lead-in", "no-lead-in"])

@@ -9,8 +9,9 @@ import pytest
 
 import retarget
 from retarget.clock import VirtualClock
-from retarget.control import ControlLoop, LoopConfig, TickRecord, run_on_bus
+from retarget.control import ControlLoop, JointGoal, LoopConfig, TickRecord, run_on_bus, run_ticks
 from retarget.errors import ConfigError
+from retarget.ik import IKResult
 from retarget.mapping import Targets, Workspace
 from retarget.mapping_config import MappingConfig
 
@@ -167,6 +168,88 @@ def test_velocity_scale_caps_every_step(arm):
     q = np.array([r.q_cmd for r in records])
     assert np.all(np.abs(np.diff(q, axis=0)) <= 0.25 * arm.max_velocity / 100 + 1e-12)
     assert summary.velocity_limited_ticks > 0
+
+
+class OutOfLimitsSolver:
+    """A test double of the IK solver whose answers lie 0.5 rad beyond every joint limit: past the upper
+    limits for the first ``turn`` calls, past the lower ones after (the real solver clamps its own answers,
+    so only a double shows whether the loop clamps what it is given)."""
+
+    def __init__(self, arm, turn: int):
+        self.high, self.low, self.turn, self.calls = arm.upper + 0.5, arm.lower - 0.5, turn, 0
+
+    def solve(self, target, seed, rotation=None) -> IKResult:
+        self.calls += 1
+        q = self.high if self.calls <= self.turn else self.low
+        return IKResult(q=q.copy(), error=0.0, iterations=1, converged=True)
+
+
+class Beyond:
+    """A target source: a point target every tick (``joint_goal=False``), or a :class:`JointGoal` 0.5 rad
+    beyond the limits (upper ones for the first ``turn`` ticks, then lower)."""
+
+    def __init__(self, arm, turn: int, *, joint_goal: bool):
+        self.arm, self.turn, self.joint_goal = arm, turn, joint_goal
+
+    def target_at(self, tick, t):
+        point = np.array([0.3, 0.0, 0.2])
+        if not self.joint_goal:
+            return point, None, False
+        q = self.arm.upper + 0.5 if tick < self.turn else self.arm.lower - 0.5
+        return JointGoal(q, point)
+
+    def finished(self, tick):
+        return False
+
+
+@pytest.mark.parametrize("joint_goal", [False, True], ids=["ik-solution", "joint-goal"])
+def test_goals_beyond_the_limits_are_clamped_by_the_loop(arm, joint_goal):
+    """Every commanded pose stays within [lower, upper] when the goal lies beyond them, and a joint driven
+    past a limit rests exactly on it (it does not creep beyond by one step per tick)."""
+    turn, n = 250, 500  # 250 ticks of pi/100 rad: every joint reaches its upper limit, then its lower one
+    solver = OutOfLimitsSolver(arm, turn)
+    records: list[TickRecord] = []
+    stats = run_ticks(
+        arm,
+        Beyond(arm, turn, joint_goal=joint_goal),
+        solver,
+        config=LoopConfig(max_ticks=n),
+        clock=VirtualClock(),
+        on_tick=records.append,
+    )
+    assert len(records) == n and solver.calls == (0 if joint_goal else n)
+    q = np.array([r.q_cmd for r in records])
+    assert np.all(q >= arm.lower) and np.all(q <= arm.upper)
+    np.testing.assert_array_equal(q[turn - 1], arm.upper)  # reached and held on the limit, not beyond
+    np.testing.assert_array_equal(q[-1], arm.lower)
+    np.testing.assert_array_equal(stats.q_cmd, arm.lower)
+
+
+@pytest.mark.parametrize(
+    ("seconds_per_tick", "reported"),
+    [(0.25, [0, 4, 8, 12, 16]), (0.0, [0]), (0.4, [0, 3, 6, 9, 12, 15, 18]), (1.0, list(range(20)))],
+    ids=["every-4th-tick", "time-stands-still", "uneven", "every-tick"],
+)
+def test_progress_is_paced_by_its_time_source(arm, seconds_per_tick, reported):
+    """``on_progress`` gets the first tick, then the first tick at least ``progress_every`` seconds of
+    ``progress_time`` after the last report (a fake time source here: one read per tick)."""
+    reads: list[float] = []
+
+    def fake_time() -> float:
+        reads.append(round(len(reads) * seconds_per_tick, 9))
+        return reads[-1]
+
+    got: list[TickRecord] = []
+    loop = ControlLoop(
+        arm,
+        circle_targets(arm),
+        config=LoopConfig(max_ticks=20, progress_every=1.0),
+        clock=VirtualClock(),
+        on_progress=got.append,
+        progress_time=fake_time,
+    )
+    loop.run(None)
+    assert len(reads) == 20 and [r.tick for r in got] == reported
 
 
 def test_summary_counts_and_percentiles(arm):
