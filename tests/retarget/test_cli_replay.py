@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
+import collections
 import csv
 import json
 import os
 import re
 import signal
-import threading
 import time
 
 import numpy as np
@@ -116,23 +116,33 @@ def test_progress_lines_on_request(capsys):
     assert shown == sorted(shown) and all(0.0 <= t <= 2.5 for t in shown)
 
 
+class CtrlCAfterSyncWrites(collections.deque):
+    """A simulator log (``simbus.log``) that sends a real SIGINT to this process when the ``n``-th SYNC_WRITE is
+    logged: counted as each instruction is appended, under the simulator's lock, so nothing iterates the log
+    while the loop appends to it, and no watcher thread can be starved (or die) and leave a run going."""
+
+    def __init__(self, n: int, *, maxlen: int | None):
+        super().__init__(maxlen=maxlen)
+        self.n, self.sync_writes = n, 0
+
+    def append(self, entry) -> None:
+        super().append(entry)
+        if entry.instruction == SYNC_WRITE:
+            self.sync_writes += 1
+            if self.sync_writes == self.n:
+                os.kill(os.getpid(), signal.SIGINT)  # handled in the main thread, as from a terminal
+
+
 @pytest.mark.parametrize("lead_in", ["0.05", "0"], ids=["during-the-lead-in", "no-lead-in"])
 def test_sigint_stops_cleanly_through_the_shutdown_sequence(arm, registered, capsys, lead_in):
     simbus, url = registered
-
-    def interrupt_once_running() -> None:
-        """Ctrl-C once the loop has sent 20 goal writes (or after 30 s, so a broken run cannot hang)."""
-        deadline = time.monotonic() + 30
-        while time.monotonic() < deadline:
-            if sum(1 for e in list(simbus.log) if e.instruction == SYNC_WRITE) >= 20:
-                break
-            time.sleep(0.005)
-        os.kill(os.getpid(), signal.SIGINT)
-
-    watcher = threading.Thread(target=interrupt_once_running, daemon=True)
-    watcher.start()
-    code, out, err = replay(capsys, "--port", url, "--fast", "--loop", "--json", "--lead-in", lead_in)
-    watcher.join()
+    simbus.log = CtrlCAfterSyncWrites(20, maxlen=simbus.log.maxlen)  # Ctrl-C once the loop has sent 20 writes
+    # --max-ticks bounds the --loop run (the lead-in is finite too): were no Ctrl-C to come, the run would end
+    # with exit 0 and fail below instead of hanging
+    code, out, err = replay(
+        capsys, "--port", url, "--fast", "--loop", "--max-ticks", "2000", "--json", "--lead-in", lead_in
+    )
+    assert simbus.log.sync_writes >= 20
     assert code == 130
     assert json.loads(out)["interrupted"] is True
     summary = json.loads(out)
