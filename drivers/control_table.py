@@ -131,24 +131,13 @@ RAD_PER_PULSE = 2.0 * math.pi / PULSES_PER_REV  #: Present/Goal Position unit, ~
 RPM_PER_VELOCITY_UNIT = 0.229  #: Velocity Limit, Goal/Present Velocity, Profile Velocity unit
 RPM2_PER_ACCEL_UNIT = 214.577  #: Profile Acceleration unit (velocity-based profile), rev/min^2
 VOLT_PER_UNIT = 0.1  #: Present Input Voltage and the voltage limits
-RETURN_DELAY_UNIT_S = 2e-6  #: Return Delay Time (9) unit
-
-
-def pulses_to_rad(pulses: float) -> float:
-    return pulses * RAD_PER_PULSE
+RETURN_DELAY_UNIT_US = 2  #: Return Delay Time (9) unit, microseconds
+RETURN_DELAY_UNIT_S = RETURN_DELAY_UNIT_US * 1e-6
 
 
 def rad_to_pulses(rad: float) -> float:
+    """Radians to position pulses (no centre, no rounding; ``drivers.units`` has the full joint encoding)."""
     return rad / RAD_PER_PULSE
-
-
-def velocity_units_to_rad_s(units: float) -> float:
-    """Velocity register units (0.229 rev/min) to rad/s."""
-    return units * RPM_PER_VELOCITY_UNIT * 2.0 * math.pi / 60.0
-
-
-def rad_s_to_velocity_units(rad_s: float) -> float:
-    return rad_s * 60.0 / (2.0 * math.pi * RPM_PER_VELOCITY_UNIT)
 
 
 # --------------------------------------------------------------------------- register and model types

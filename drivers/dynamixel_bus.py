@@ -51,7 +51,7 @@ import numpy as np
 
 from drivers import units
 from drivers.comm import Link, Reply
-from drivers.control_table import MODEL_BY_NUMBER, hardware_error_names
+from drivers.control_table import MODEL_BY_NUMBER, VOLT_PER_UNIT, hardware_error_names
 from drivers.latency import check_latency_timer
 from drivers.port import open_port
 from drivers.servo_plan import MAX_PROFILE_MS, Profile, ServoPlan, ServoSettings, plan_servos
@@ -103,7 +103,7 @@ class ServoState:
                 load[k] = field("Present Load") / 1000.0
             else:
                 cur[k] = field("Present Current") * s.model.current_unit_ma / 1000.0
-            volt[k] = field("Present Input Voltage") * 0.1
+            volt[k] = field("Present Input Voltage") * VOLT_PER_UNIT
             temp[k] = field("Present Temperature")
         return cls(tuple(s.id for s in servos), pos, vel, cur, load, volt, temp)
 

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from drivers import units
-from drivers.control_table import DriveMode, Model, OperatingMode
+from drivers.control_table import RETURN_DELAY_UNIT_US, DriveMode, Model, OperatingMode
 from drivers.control_table import model as lookup_model
 from retarget.errors import ConfigError
 
@@ -128,6 +128,6 @@ class ServoSettings:
             "Max Position Limit": s.max_tick,
             "Min Position Limit": s.min_tick,
             "Velocity Limit": velocity_limit,
-            "Return Delay Time": self.return_delay_us // 2,
+            "Return Delay Time": self.return_delay_us // RETURN_DELAY_UNIT_US,
         }
         return eeprom, {"Profile Acceleration": pa, "Profile Velocity": pv}

@@ -18,15 +18,16 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike
 
-TICKS_PER_REV = 4096
+# the register units come from the one register table; this module turns joint values into register values
+from drivers.control_table import PULSES_PER_REV, RPM2_PER_ACCEL_UNIT, RPM_PER_VELOCITY_UNIT
+
+TICKS_PER_REV = PULSES_PER_REV
 CENTER_TICK = 2048
 MIN_TICK = 0
 MAX_TICK = TICKS_PER_REV - 1  #: position mode (3) is a single turn: 0 .. 4095
 RAD_PER_TICK = 2.0 * math.pi / TICKS_PER_REV  #: about 0.088 deg
-RPM_PER_VELOCITY_UNIT = 0.229  #: Profile Velocity, Velocity Limit, Present Velocity
 RAD_S_PER_VELOCITY_UNIT = RPM_PER_VELOCITY_UNIT * 2.0 * math.pi / 60.0  #: about 0.02398 rad/s
-REV_MIN2_PER_ACCEL_UNIT = 214.577  #: Profile Acceleration (velocity-based profile)
-RAD_S2_PER_ACCEL_UNIT = REV_MIN2_PER_ACCEL_UNIT * 2.0 * math.pi / 3600.0  #: about 0.3745 rad/s^2
+RAD_S2_PER_ACCEL_UNIT = RPM2_PER_ACCEL_UNIT * 2.0 * math.pi / 3600.0  #: about 0.3745 rad/s^2
 
 
 def rad_to_ticks(q: ArrayLike, *, offset: ArrayLike = 0, direction: ArrayLike = 1) -> np.ndarray:

@@ -43,8 +43,10 @@ from drivers.control_table import (
     BAUD_RATES,
     EEPROM_END,
     PULSES_PER_REV,
+    RETURN_DELAY_UNIT_S,
     RPM2_PER_ACCEL_UNIT,
     RPM_PER_VELOCITY_UNIT,
+    VOLT_PER_UNIT,
     DriveMode,
     FactoryReset,
     HardwareError,
@@ -140,7 +142,7 @@ class SimServo:
     @property
     def return_delay(self) -> float:
         """Seconds between the end of an instruction and the start of its status packet."""
-        return self._mem[9] * 2e-6
+        return self._mem[9] * RETURN_DELAY_UNIT_S
 
     @property
     def status_return_level(self) -> int:
@@ -212,7 +214,7 @@ class SimServo:
         if bits & HardwareError.OVERHEATING:
             self.ambient_temperature = max(self.ambient_temperature, self._get("Temperature Limit") + 3)
         if bits & HardwareError.INPUT_VOLTAGE:
-            self.input_voltage = self._get("Max Voltage Limit") / 10.0 + 1.0
+            self.input_voltage = self._get("Max Voltage Limit") * VOLT_PER_UNIT + 1.0
         if bits & self._mem[63] and self._mem[64]:
             self._torque_off()
         log.info("servo %d: hardware error 0x%02x", self.id, bits)
@@ -368,7 +370,7 @@ class SimServo:
             ma = load * self.model.stall_current * 1000.0
             _I16.pack_into(mem, 126, max(-32768, min(32767, round(ma / self.model.current_unit_ma))))
         _I16.pack_into(mem, 124, round(sign * v / self._no_load * 885) if torque else 0)
-        _U16.pack_into(mem, 144, max(0, min(65535, round(self.input_voltage * 10))))
+        _U16.pack_into(mem, 144, max(0, min(65535, round(self.input_voltage / VOLT_PER_UNIT))))
         mem[146] = max(0, min(255, round(self.ambient_temperature + 4.0 * abs(load))))
         if self._indirect_used:
             self._refresh_indirect()

@@ -7,6 +7,7 @@ import math
 import pytest
 
 from drivers import control_table as ct
+from drivers import units
 from retarget.arm import SERVO_MODELS
 
 
@@ -90,9 +91,11 @@ def test_covering_and_at():
 
 
 def test_units_and_names():
-    assert ct.pulses_to_rad(4096) == pytest.approx(2 * math.pi)
-    assert ct.rad_to_pulses(ct.pulses_to_rad(1234.5)) == pytest.approx(1234.5)
-    assert ct.velocity_units_to_rad_s(1) == pytest.approx(0.229 * 2 * math.pi / 60)
-    assert ct.rad_s_to_velocity_units(ct.velocity_units_to_rad_s(17)) == pytest.approx(17)
+    assert ct.rad_to_pulses(2 * math.pi) == pytest.approx(4096)
+    assert ct.rad_to_pulses(1234.5 * units.RAD_PER_TICK) == pytest.approx(1234.5)
+    # drivers.units encodes joints with the table's units, not copies of them
+    assert units.velocity_units_to_rad_s(1) == pytest.approx(0.229 * 2 * math.pi / 60)
+    assert units.rad_s2_to_accel_units(214.577 * 2 * math.pi / 3600) == 1
+    assert ct.RETURN_DELAY_UNIT_S == 2e-6 and ct.VOLT_PER_UNIT == 0.1
     assert ct.hardware_error_names(0x25) == ("input_voltage", "overheating", "overload")
     assert ct.BAUD_CODES[1_000_000] == 3 and ct.BAUD_RATES[1] == 57600
