@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import json
 import logging
 import sys
 import traceback
@@ -46,6 +47,12 @@ examples:
 
 run 'retarget COMMAND --help' for each command's own examples.
 """
+
+
+def print_json(data: object) -> None:
+    """Write ``data`` as the commands' ``--json`` output: indented JSON and a final newline, on stdout."""
+    json.dump(data, sys.stdout, indent=2)
+    sys.stdout.write("\n")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -10,11 +10,11 @@ frame (metres) and prints the joint angles in degrees; --json prints JSON.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from typing import Any
 
+from retarget.cli import print_json
 from retarget.errors import ConfigError
 
 EXAMPLES = """\
@@ -66,8 +66,7 @@ def run(args: argparse.Namespace) -> int:
         names = list_arms()
         rows = [(n, load_arm(n).title) for n in names]
         if args.json:
-            json.dump([{"name": n, "title": t} for n, t in rows], sys.stdout, indent=2)
-            sys.stdout.write("\n")
+            print_json([{"name": n, "title": t} for n, t in rows])
         else:
             for n, t in rows:
                 print(f"{n:10s} {t}")
@@ -77,8 +76,7 @@ def run(args: argparse.Namespace) -> int:
     if args.ik is not None:
         report["ik"] = solve(arm, parse_point(args.ik), args.start)
     if args.json:
-        json.dump(report, sys.stdout, indent=2)
-        sys.stdout.write("\n")
+        print_json(report)
     else:
         sys.stdout.write(format_text(report))
     return 0

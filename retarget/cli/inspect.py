@@ -9,12 +9,12 @@ bone lengths.  ``--json`` prints the same on stdout as one JSON object.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from collections import Counter
 from pathlib import Path
 from typing import Any
 
+from retarget.cli import print_json
 from retarget.errors import BvhError
 
 DESCRIPTION = (
@@ -66,8 +66,7 @@ def run(args: argparse.Namespace) -> int:
     motion = load_bvh(path)
     report = describe(motion, sides=("left", "right") if args.side == "both" else (args.side,), names=args.arm_joints)
     if args.json:
-        json.dump(report, sys.stdout, indent=2)
-        sys.stdout.write("\n")
+        print_json(report)
     else:
         sys.stdout.write(format_text(report))
     return 0

@@ -14,7 +14,6 @@ export`` shares (clip window, mapping flags); the bus options live in
 from __future__ import annotations
 
 import argparse
-import json
 import re
 import sys
 from collections.abc import Callable
@@ -23,6 +22,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from retarget.bus import connected
+from retarget.cli import print_json
 from retarget.cli._arm import add_arm_arguments, load_arm_option
 from retarget.cli._bus import add_bus_arguments, build_bus, check_bus_options, sigint_stops
 from retarget.errors import ConfigError
@@ -266,6 +266,5 @@ def run(args: argparse.Namespace) -> int:
             setup.release()
     print(summary.format(), file=sys.stderr)
     if args.json:
-        json.dump(summary.to_dict(), sys.stdout, indent=2)
-        sys.stdout.write("\n")
+        print_json(summary.to_dict())
     return EXIT_INTERRUPTED if summary.interrupted else 0

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 
+from retarget.cli import print_json
 from retarget.errors import BusError
 
 EPILOG = """\
@@ -60,8 +60,7 @@ def run(args: argparse.Namespace) -> int:
             "check power, the cable, and try --all-bauds"
         )
     if args.json:
-        json.dump([s.as_dict() for s in found], sys.stdout, indent=2)
-        sys.stdout.write("\n")
+        print_json([s.as_dict() for s in found])
     else:
         print(f"{'ID':>3}  {'MODEL':<12} {'NUMBER':>6}  {'FIRMWARE':>8}  {'BAUD':>8}")
         for s in found:

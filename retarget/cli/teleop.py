@@ -15,13 +15,13 @@ input, 4 for a bus failure, 130 after Ctrl-C.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import threading
 from typing import TYPE_CHECKING, Any
 
 from retarget.bus import connected
+from retarget.cli import print_json
 from retarget.cli._arm import add_arm_arguments, load_arm_option
 from retarget.cli._bus import add_bus_arguments, build_bus, check_bus_options, sigint_stops
 from retarget.errors import ConfigError
@@ -270,8 +270,7 @@ def _report(args: argparse.Namespace, result: TeleopResult, pose: BasePose | Non
         if pose is not None and result.target is not None:
             doc["target_world_m"] = [round(float(v), 6) for v in pose.to_world(result.target)]
             doc["reached_world_m"] = [round(float(v), 6) for v in pose.to_world(result.reached)]
-        json.dump({**s.to_dict(), "teleop": doc}, sys.stdout, indent=2)
-        sys.stdout.write("\n")
+        print_json({**s.to_dict(), "teleop": doc})
         return
     if result.target is None:
         print("no target received", file=sys.stderr)
