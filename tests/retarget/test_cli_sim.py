@@ -9,7 +9,6 @@ import signal
 import subprocess
 import sys
 
-import dynamixel_sdk.port_handler
 import pytest
 import serial
 from dynamixel_sdk import COMM_SUCCESS, PacketHandler, PortHandler
@@ -94,9 +93,7 @@ def test_serves_on_loopback_tcp_until_sigterm():
 
 @pytest.mark.pty
 @pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a POSIX pseudo-terminal")
-def test_serves_on_a_pty_for_the_plain_sdk_port(monkeypatch):
-    # a loaded CI machine may deschedule the server process past the SDK's stock 34 ms reply window
-    monkeypatch.setattr(dynamixel_sdk.port_handler, "LATENCY_TIMER", 100)
+def test_serves_on_a_pty_for_the_plain_sdk_port(patient_sdk):
     proc, path = _start("--arm", "wx250s", "--rdt", "0")
     try:
         port = PortHandler(path)

@@ -10,7 +10,6 @@ import os
 from collections.abc import Iterator
 from dataclasses import dataclass
 
-import dynamixel_sdk.port_handler
 import pytest
 import serial
 from dynamixel_sdk import PacketHandler, PortHandler
@@ -65,17 +64,9 @@ def close_rig(rig: Rig, resource: object) -> None:
         sim.unregister(str(resource))
 
 
-#: The SDK waits ``2 * LATENCY_TIMER + 2`` ms for a reply.  A real servo answers within microseconds, but the
-#: pty responder is a thread of this test process: on a loaded 2-core CI machine it can wait on the GIL past the
-#: SDK's stock 34 ms and turn a reply into COMM_RX_TIMEOUT.  The tests give the SDK the window it would have on a
-#: high-latency adapter (users raise LATENCY_TIMER the same way, DynamixelSDK#288); the PortHandler class is
-#: unchanged.  Tests that expect silence take this long per missed reply.
-TEST_LATENCY_TIMER_MS = 100
-
-
 @pytest.fixture(autouse=True)
-def patient_sdk_timeout(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(dynamixel_sdk.port_handler, "LATENCY_TIMER", TEST_LATENCY_TIMER_MS)
+def _every_sim_test_has_a_patient_sdk(patient_sdk: None) -> None:
+    """The pty responder is a thread of this process: see ``patient_sdk`` in tests/conftest.py."""
 
 
 needs_pty = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a POSIX pseudo-terminal")
