@@ -7,7 +7,9 @@ own packet code; what this module adds is what the SDK leaves to its callers:
   naming the servo IDs that did not answer (never a value of 0 for a failed read);
 * status error bytes are decoded into names ("access error"); the Alert bit is collected in
   :attr:`Link.alerts` for the caller to read Hardware Error Status;
-* sync reads collect the status packets by ID, so a missing servo is named, not just "a timeout".
+* sync reads collect the status packets by ID, so a missing servo is named, not just "a timeout";
+* a group read can be split in two (:meth:`Link.send_group_read`, then :meth:`Link.receive_group_read`), so
+  the host can work while the status packets are on the wire.
 """
 
 from __future__ import annotations
@@ -275,20 +277,8 @@ class Link:
         self.port.is_using = False
         return replies
 
-    def sync_read_once(self, ids: Sequence[int], address: int, length: int) -> dict[int, Reply]:
-        """One SYNC_READ; the replies that came, by ID (missing IDs are absent)."""
-        result = self.ph.syncReadTx(self.port, address, length, list(ids), len(ids), False)
-        if result != COMM_SUCCESS:
-            self.port.is_using = False
-            return {}
-        return self._collect(dict.fromkeys(ids, length))
-
-    def fast_sync_read_once(self, ids: Sequence[int], address: int, length: int) -> dict[int, Reply] | None:
-        """One FAST_SYNC_READ (a single status packet for all); None when it failed as a whole."""
-        result = self.ph.syncReadTx(self.port, address, length, list(ids), len(ids), True)
-        if result != COMM_SUCCESS:
-            self.port.is_using = False
-            return None
+    def _collect_fast(self, ids: Sequence[int], length: int) -> dict[int, Reply] | None:
+        """The one status packet after a FAST_SYNC_READ, split by servo; None when it failed as a whole."""
         raw, result, _ = self.ph.fastSyncReadRx(self.port, BROADCAST_ID, (length + 4) * len(ids))
         if result != COMM_SUCCESS or len(raw) < (length + 4) * len(ids) - 2:
             return None
@@ -305,16 +295,79 @@ class Link:
             replies[dxl_id] = Reply(dxl_id, error, bytes(raw[i + 2 : i + 2 + length]))
         return replies
 
-    def bulk_read_once(self, requests: Mapping[int, tuple[int, int]]) -> dict[int, Reply]:
-        """One BULK_READ of ``{id: (address, length)}``; the replies that came, by ID."""
-        param: list[int] = []
-        for dxl_id, (address, length) in requests.items():
-            param += [dxl_id, address & 0xFF, address >> 8, length & 0xFF, length >> 8]
-        result = self.ph.bulkReadTx(self.port, param, len(param), False)
+    def _send_read(self, read: GroupRead, fast: bool) -> bool:
+        """Send the instruction of one try of ``read``; False (and the port released) when it did not go out."""
+        if read.same:
+            result = self.ph.syncReadTx(self.port, read.address, read.length, list(read.ids), len(read.ids), fast)
+        else:
+            result = self.ph.bulkReadTx(self.port, list(read.bulk_param), len(read.bulk_param), False)
         if result != COMM_SUCCESS:
             self.port.is_using = False
-            return {}
-        return self._collect({dxl_id: length for dxl_id, (_, length) in requests.items()})
+            return False
+        return True
+
+    def _receive_read(self, read: GroupRead, fast: bool, sent: bool) -> dict[int, Reply] | None:
+        """The replies of one try of ``read`` whose instruction was ``sent``: by ID (missing IDs absent), or None
+        when a FAST_SYNC_READ failed as a whole."""
+        if fast:
+            return self._collect_fast(read.ids, read.length) if sent else None
+        return self._collect(read.lengths) if sent else {}
+
+    def sync_read_once(self, ids: Sequence[int], address: int, length: int) -> dict[int, Reply]:
+        """One SYNC_READ; the replies that came, by ID (missing IDs are absent)."""
+        read = GroupRead.plan({i: (address, length) for i in ids})
+        return self._receive_read(read, False, self._send_read(read, False)) or {}
+
+    def fast_sync_read_once(self, ids: Sequence[int], address: int, length: int) -> dict[int, Reply] | None:
+        """One FAST_SYNC_READ (a single status packet for all); None when it failed as a whole."""
+        read = GroupRead.plan({i: (address, length) for i in ids})
+        return self._receive_read(read, True, self._send_read(read, True))
+
+    def bulk_read_once(self, requests: Mapping[int, tuple[int, int]]) -> dict[int, Reply]:
+        """One BULK_READ of ``{id: (address, length)}``; the replies that came, by ID."""
+        read = GroupRead.plan(requests, bulk=True)
+        return self._receive_read(read, False, self._send_read(read, False)) or {}
+
+    def send_group_read(self, read: GroupRead) -> GroupRead:
+        """Send the instruction of ``read`` (from :meth:`GroupRead.plan`) and return without waiting: ``read``
+        marked sent or not.
+
+        The status packets come in while the caller works; :meth:`receive_group_read` takes them (with the
+        retries of :meth:`group_read`).  Nothing else may use the link in between: the SDK keeps the port
+        marked busy until the replies are read (a Ctrl-C there is undone by :meth:`release`).
+        """
+        return read._replace(sent=self._send_read(read, read.fast))
+
+    def receive_group_read(self, read: GroupRead, *, what: str = "") -> dict[int, Reply]:
+        """The replies of a group read sent by :meth:`send_group_read`, with the retries of :meth:`group_read`."""
+        ids = read.ids
+        use_fast = read.fast
+        sent = read.sent
+        missing: set[int] = set(ids)
+        errors: dict[int, str] = {}
+        for attempt in range(self.retries + 1):
+            if attempt:
+                self._retrying(what or "a group read", sorted(missing | set(errors)), "no reply or a status error")
+                sent = self._send_read(read, use_fast)
+            got = self._receive_read(read, use_fast, sent)
+            if use_fast:
+                if got is None:  # one packet for all: repeat as a plain read, which names the silent servo
+                    self.fast_failures += 1
+                    self._retrying(what or "a group read", ids, "FAST_SYNC_READ failed; as a plain SYNC_READ")
+                    use_fast = False
+                    got = self._receive_read(read, False, self._send_read(read, False))
+                else:
+                    self.fast_failures = 0
+            assert got is not None  # only a fast read gives None
+            if len(got) == len(ids) and not any(r.error & _NOT_ALERT for r in got.values()):
+                return got  # every servo answered (the replies hold only requested IDs), none with an error
+            errors = {i: name for i, r in got.items() if (name := status_error_name(r.error)) is not None}
+            missing = set(ids) - set(got)
+        what = what or "a group read"
+        if missing:
+            raise self._fail(f"no status packet ({what}) at {self.baud} baud after {self.retries + 1} tries", missing)
+        detail = ", ".join(f"{i}: {name}" for i, name in sorted(errors.items()))
+        raise self._fail(f"status error ({what}): {detail}", errors)
 
     def group_read(
         self,
@@ -329,35 +382,34 @@ class Link:
         failed fast read is repeated as a plain one, which tells which servo is silent), BULK_READ otherwise.
         Raises BusError naming the servos that never answered, or that answered with a status error.
         """
-        ids = list(requests)
+        return self.receive_group_read(self.send_group_read(GroupRead.plan(requests, fast=fast)), what=what)
+
+
+class GroupRead(NamedTuple):
+    """The plan of one group read (:meth:`Link.send_group_read`): which instruction, for which servos.
+
+    A NamedTuple: the tick path builds one per tick.
+    """
+
+    ids: tuple[int, ...]
+    lengths: Mapping[int, int]  #: bytes each servo returns, by ID
+    same: bool  #: every servo reads the same address and length: SYNC_READ (else BULK_READ)
+    address: int  #: of a SYNC_READ
+    length: int  #: of a SYNC_READ
+    fast: bool  #: FAST_SYNC_READ first
+    bulk_param: tuple[int, ...]  #: the BULK_READ parameters (ID, address, length per servo)
+    sent: bool = False  #: the first try's instruction went out (``send_group_read``)
+
+    @classmethod
+    def plan(cls, requests: Mapping[int, tuple[int, int]], *, fast: bool = False, bulk: bool = False) -> GroupRead:
+        """The read of ``{id: (address, length)}``: SYNC_READ when all share the address and length (FAST_SYNC_READ
+        with ``fast``), else (or with ``bulk``) BULK_READ."""
         shapes = set(requests.values())
-        same = len(shapes) == 1
+        same = len(shapes) == 1 and not bulk
         address, length = next(iter(shapes)) if same else (0, 0)
-        use_fast = same and fast
-        missing: set[int] = set(ids)
-        errors: dict[int, str] = {}
-        for attempt in range(self.retries + 1):
-            if attempt:
-                self._retrying(what or "a group read", sorted(missing | set(errors)), "no reply or a status error")
-            if use_fast:
-                got = self.fast_sync_read_once(ids, address, length)
-                if got is None:  # one packet for all: repeat as a plain read, which names the silent servo
-                    self.fast_failures += 1
-                    self._retrying(what or "a group read", ids, "FAST_SYNC_READ failed; as a plain SYNC_READ")
-                    use_fast = False
-                    got = self.sync_read_once(ids, address, length)
-                else:
-                    self.fast_failures = 0
-            elif same:
-                got = self.sync_read_once(ids, address, length)
-            else:
-                got = self.bulk_read_once(requests)
-            if len(got) == len(ids) and not any(r.error & _NOT_ALERT for r in got.values()):
-                return got  # every servo answered (the replies hold only requested IDs), none with an error
-            errors = {i: name for i, r in got.items() if (name := status_error_name(r.error)) is not None}
-            missing = set(ids) - set(got)
-        what = what or "a group read"
-        if missing:
-            raise self._fail(f"no status packet ({what}) at {self.baud} baud after {self.retries + 1} tries", missing)
-        detail = ", ".join(f"{i}: {name}" for i, name in sorted(errors.items()))
-        raise self._fail(f"status error ({what}): {detail}", errors)
+        param: list[int] = []
+        if not same:
+            for dxl_id, (a, n) in requests.items():
+                param += [dxl_id, a & 0xFF, a >> 8, n & 0xFF, n >> 8]
+        lengths = {dxl_id: n for dxl_id, (_, n) in requests.items()}
+        return cls(tuple(requests), lengths, same, address, length, same and fast, tuple(param))

@@ -50,7 +50,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from drivers import units
-from drivers.comm import Link, Reply
+from drivers.comm import GroupRead, Link, Reply
 from drivers.control_table import MODEL_BY_NUMBER, VOLT_PER_UNIT, hardware_error_names
 from drivers.latency import check_latency_timer
 from drivers.port import open_port
@@ -206,6 +206,11 @@ class DynamixelBus:
         js = self._joint_servos
         self._servo_joint = np.array([s.joint for s in js])
         self._position_requests = {s.id: (s.model.register("Present Position").address, 4) for s in js}
+        #: the Present Position read planned once, plain and FAST_SYNC_READ (indexed by ``_use_fast``)
+        self._position_reads = (
+            GroupRead.plan(self._position_requests),
+            GroupRead.plan(self._position_requests, fast=True),
+        )
         self._state_requests = {s.id: (_STATE_START, _STATE_END - _STATE_START) for s in self.servos}
         self._servo_offset = np.array([s.offset for s in js], dtype=np.int64)
         # the joint range every servo of the joint can reach: the intersection over its servos
@@ -240,6 +245,7 @@ class DynamixelBus:
         self._recoveries: dict[int, int] = {}  #: servo ID -> reboots since connect
         self._firmware: dict[int, int] = {}
         self._use_fast = False
+        self._pending: GroupRead | None = None  #: a position read sent by request_positions, not yet collected
 
     # ------------------------------------------------------------------ Bus protocol
 
@@ -304,7 +310,8 @@ class DynamixelBus:
         link = self._link
         if link is None:
             return
-        link.release()  # a Ctrl-C inside the SDK leaves the port marked busy
+        link.release()  # a Ctrl-C inside the SDK leaves the port marked busy; an uncollected read's replies go too
+        self._pending = None
         interrupted: KeyboardInterrupt | None = None
         try:
             if self._torque and self.shutdown_mode is ShutdownMode.REST:
@@ -346,7 +353,28 @@ class DynamixelBus:
         Alert bit set is reported by its hardware error names (or rebooted and configured again with
         ``recover=True``).
         """
-        replies = self._read_joint_replies()
+        self.request_positions()
+        return self.collect_positions()
+
+    def request_positions(self) -> None:
+        """Send the position read of :meth:`read_positions` and return at once; :meth:`collect_positions` ends it.
+
+        The status packets come in while the caller computes (the control loop solves the next tick meanwhile),
+        so the wire is not idle during host work.  Until then no other call may use the bus (BusError).
+        """
+        link = self._require_active()  # also refuses a second request before the first is collected
+        self._pending = link.send_group_read(self._position_reads[self._use_fast])
+
+    def collect_positions(self) -> np.ndarray:
+        """Present joint angles ``(n_joints,) float64`` radians of the read :meth:`request_positions` sent.
+
+        Failures, retries and alerts as :meth:`read_positions`.
+        """
+        read = self._pending
+        if read is None:
+            raise BusError("no position read in flight: call request_positions() first")
+        self._pending = None
+        replies = self._read_joint_replies(read)
         self._ticks += 1
         return np.array(
             [
@@ -450,6 +478,8 @@ class DynamixelBus:
         link = self.link
         if self._faulted:
             raise BusError(f"bus is faulted ({self._faulted}); no more goals are sent: close it")
+        if self._pending is not None:
+            raise BusError("a position read is in flight: call collect_positions() first")
         return link
 
     def _require_gripper(self) -> ServoPlan:
@@ -492,11 +522,16 @@ class DynamixelBus:
             dtype=np.int64,
         )
 
-    def _read_joint_replies(self, *, check_active: bool = True) -> dict[int, Reply]:
-        """Present Position replies of every joint servo (shadows too, so their alerts are seen), by ID."""
-        link = self._require_active() if check_active else self.link
+    def _read_joint_replies(self, sent: GroupRead | None = None, *, check_active: bool = True) -> dict[int, Reply]:
+        """Present Position replies of every joint servo (shadows too, so their alerts are seen), by ID: of the
+        read ``sent`` (by request_positions), else of one read sent now."""
+        if sent is None:
+            link = self._require_active() if check_active else self.link
+            sent = link.send_group_read(self._position_reads[self._use_fast])
+        else:
+            link = self.link
         try:
-            replies = link.group_read(self._position_requests, fast=self._use_fast, what="Present Position")
+            replies = link.receive_group_read(sent, what="Present Position")
         except BusError as exc:
             self._faulted = str(exc)
             raise

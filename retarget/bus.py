@@ -62,6 +62,17 @@ class Bus(Protocol):
         Raises ``BusError``; never returns 0 for a failed read.
         """
 
+    def request_positions(self) -> None:
+        """The first half of :meth:`read_positions`: start the read and return without waiting for it.
+
+        The control loop computes its next tick while the replies are on the wire, then calls
+        :meth:`collect_positions`; no other call comes in between.  A bus that cannot split a read may
+        do nothing here and the whole read in ``collect_positions``.
+        """
+
+    def collect_positions(self) -> np.ndarray:
+        """The second half of :meth:`read_positions`: the positions of the read ``request_positions`` started."""
+
     def write_goals(self, q: np.ndarray) -> None:
         """Send goal angles ``(n_joints,) float64`` radians to every servo in one write."""
 
