@@ -28,3 +28,21 @@ def registered(arm):
     url = sim.register(name, simbus)
     yield simbus, url
     sim.unregister(name)
+
+
+@pytest.fixture
+def sim_bus(arm):
+    """A simulated wx250s (wire-time model on) on a shared virtual clock, reachable as sim://@NAME."""
+    import sim
+
+    def make(**faults):
+        clock = VirtualClock()
+        simbus = sim.SimBus.from_arm(arm, clock=clock, faults=sim.Faults(wire=True, **faults))
+        url = sim.attach(simbus)
+        names.append(url.removeprefix("sim://@"))
+        return simbus, url, clock
+
+    names: list[str] = []
+    yield make
+    for name in names:
+        sim.unregister(name)

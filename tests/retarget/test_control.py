@@ -325,24 +325,6 @@ def test_orientation_targets_reach_the_solver(arm):
 # --------------------------------------------------------------------------------------------- on the simulated bus
 
 
-@pytest.fixture
-def sim_bus(arm):
-    """A simulated wx250s (wire-time model on) on a shared virtual clock, reachable as sim://@NAME."""
-    import sim
-
-    def make(**faults):
-        clock = VirtualClock()
-        simbus = sim.SimBus.from_arm(arm, clock=clock, faults=sim.Faults(wire=True, **faults))
-        url = sim.attach(simbus)
-        names.append(url.removeprefix("sim://@"))
-        return simbus, url, clock
-
-    names: list[str] = []
-    yield make
-    for name in names:
-        sim.unregister(name)
-
-
 def servo_angles(simbus, arm) -> np.ndarray:
     """Joint angles read from the primary simulated servos' Present Position, radians."""
     from drivers.units import ticks_to_rad
@@ -385,19 +367,27 @@ def test_run_on_the_simulated_bus_reaches_the_solved_angles(arm, sim_bus):
     assert torque(simbus, arm) == [1] * 8
 
 
-def test_ctrl_c_in_a_tick_stops_and_the_bus_shuts_down_at_rest(arm, sim_bus):
+@pytest.mark.parametrize(
+    ("pipeline", "ticks"),
+    [(False, 31), (True, 32)],  # pipelined, tick 30's record comes once tick 31's goals went out: 31 is counted
+    ids=["in-tick-read", "pipelined"],
+)
+def test_ctrl_c_in_a_tick_stops_and_the_bus_shuts_down_at_rest(arm, sim_bus, pipeline, ticks):
     from drivers import DynamixelBus
 
     simbus, url, clock = sim_bus()
+    seen: list[int] = []
 
     def on_tick(r: TickRecord) -> None:
+        seen.append(r.tick)
         if r.tick == 30:
             raise KeyboardInterrupt
 
-    loop = ControlLoop(arm, circle_targets(arm), clock=clock, on_tick=on_tick)
+    loop = ControlLoop(arm, circle_targets(arm), clock=clock, on_tick=on_tick, pipeline=pipeline)
     bus = DynamixelBus(arm, url, clock=clock, shutdown="rest")
     summary = run_on_bus(loop, bus)
-    assert summary.interrupted and summary.ticks == 31
+    assert summary.interrupted and summary.ticks == ticks
+    assert seen[-(ticks - 29) :] == list(range(29, ticks))  # every tick whose goals went out has its record
     assert not bus.connected
     assert torque(simbus, arm) == [0] * 8
     np.testing.assert_allclose(servo_angles(simbus, arm), arm.rest, atol=0.06)
@@ -567,8 +557,9 @@ def test_ctrl_c_during_the_lead_in_shuts_the_bus_down_at_rest(arm, sim_bus):
     loop = ControlLoop(arm, circle_targets(arm), config=LoopConfig(lead_in_speed=0.1), clock=clock, on_tick=on_tick)
     bus = DynamixelBus(arm, url, clock=clock, shutdown="rest")
     summary = run_on_bus(loop, bus)
-    assert summary.interrupted and summary.ticks == 0 and summary.lead_in_ticks == 100  # the tick Ctrl-C hit counts
-    assert all(r.lead_in for r in records)
+    # the 100th record comes (pipelined) once tick 101's goals went out: both count, and both have a record
+    assert summary.interrupted and summary.ticks == 0 and summary.lead_in_ticks == 101
+    assert len(records) == 101 and all(r.lead_in for r in records)
     assert not bus.connected
     assert torque(simbus, arm) == [0] * 8
     np.testing.assert_allclose(servo_angles(simbus, arm), arm.rest, atol=0.06)
