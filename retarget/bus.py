@@ -1,6 +1,6 @@
 """The small interface the control loop needs from a servo bus.
 
-The control loop (``retarget.control``) only ever talks to an object that
+The control loop (``retarget.tick_loop``) only ever talks to an object that
 follows :class:`Bus`.  ``drivers.DynamixelBus`` implements it on dynamixel-sdk;
 anything else that moves joints (another servo family, a physics simulator)
 can implement it too.  Angles are joint angles of the arm description, in

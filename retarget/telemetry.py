@@ -25,7 +25,7 @@ from collections.abc import Sequence
 from typing import IO, TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from retarget.control import TickRecord
+    from retarget.tick_loop import TickRecord
 
 __all__ = ["TelemetryWriter", "telemetry_columns"]
 
@@ -54,7 +54,7 @@ def telemetry_columns(joint_names: Sequence[str]) -> list[str]:
 
 
 class TelemetryWriter:
-    """Writes :class:`~retarget.control.TickRecord` rows to ``target`` (a path, or an open text stream).
+    """Writes :class:`~retarget.tick_loop.TickRecord` rows to ``target`` (a path, or an open text stream).
 
     A context manager; callable, so it can be passed as ``on_tick``.  A path is
     opened (truncated) on ``__enter__``/``open()``; a stream is left open on close.

@@ -1,7 +1,7 @@
 """Teleoperation: steer the tool point to targets that arrive while the arm moves.
 
 A :class:`Follower` turns a target source (:mod:`retarget.teleop_sources`: ``--to``, ``--stdin``, ``--udp``,
-the interactive keys) into the per-tick target of the control loop (:class:`retarget.control.TargetSource`):
+the interactive keys) into the per-tick target of the control loop (:class:`retarget.tick_loop.TargetSource`):
 
 - accepted targets queue in arrival order; the follower steers toward the oldest one it has not passed,
   so a stream that comes faster than the arm moves is still visited *in order*;
@@ -44,11 +44,11 @@ if TYPE_CHECKING:
     from retarget.arm import Arm
     from retarget.bus import Bus
     from retarget.clock import Clock
-    from retarget.control import LoopConfig, TickRecord, TickStats
     from retarget.ik import CCDSolver, IKResult
     from retarget.summary import RunSummary
     from retarget.teleop_input import Target
     from retarget.teleop_sources import Source
+    from retarget.tick_loop import LoopConfig, TickRecord, TickStats
 
 __all__ = ["Follower", "Phase", "PoseSolver", "TeleopResult", "Visit", "run_teleop", "tool_point"]
 
@@ -103,7 +103,7 @@ def _positive(value: float, key: str, *, inf: bool = False) -> float:
 
 
 class Follower:
-    """Follows the targets of ``source`` on ``arm``; a :class:`~retarget.control.TargetSource`.
+    """Follows the targets of ``source`` on ``arm``; a :class:`~retarget.tick_loop.TargetSource`.
 
     Keyword-only knobs (metres, seconds): ``rate`` (ticks per second of the loop), ``max_speed``
     (``inf``: no Cartesian limit), ``tolerance``, ``pass_radius``, ``timeout`` (None: never stale),
@@ -434,14 +434,14 @@ def run_teleop(
     stop: threading.Event | None = None,
     name: str = "teleop",
 ) -> TeleopResult:
-    """Run the shared control loop (:func:`retarget.control.run_ticks`) on ``follower`` until its source is
+    """Run the shared control loop (:func:`retarget.tick_loop.run_ticks`) on ``follower`` until its source is
     finished and the servos settled (at most ``settle_time`` s more), ``config.max_ticks``, ``stop`` or Ctrl-C.
 
     ``bus`` must be connected (None: a dry run).  The reached point is the FK of the positions read
     back at the end.  ``solver`` defaults to a :class:`~retarget.ik.CCDSolver` with the config's budget
     and the mapping's per-joint weights (orientation weight 0.1 for targets with a rotation).
     """
-    from retarget.control import run_ticks
+    from retarget.tick_loop import run_ticks
 
     if solver is None:
         solver = PoseSolver(arm, config)

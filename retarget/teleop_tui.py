@@ -26,8 +26,8 @@ from retarget.teleop_sources import Source
 
 if TYPE_CHECKING:
     from retarget.arm import Arm
-    from retarget.control import TickRecord
     from retarget.teleop_input import TargetGate
+    from retarget.tick_loop import TickRecord
 
 __all__ = ["Action", "Jog", "KeySource", "TerminalUI", "KEYS"]
 

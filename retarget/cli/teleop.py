@@ -28,10 +28,10 @@ from retarget.errors import ConfigError
 
 if TYPE_CHECKING:
     from retarget.arm import Arm
-    from retarget.control import TickRecord
     from retarget.teleop import Follower, TeleopResult
     from retarget.teleop_input import BasePose, TargetGate
     from retarget.teleop_sources import Source
+    from retarget.tick_loop import TickRecord
 
 DEFAULT_UDP_TIMEOUT = 1.0  #: s, the dead-man timeout of --udp unless --timeout says otherwise
 DEFAULT_UDP_MAX_LAG = 1.0  #: s, --udp skips targets this far behind the newest unless --max-lag says otherwise
@@ -192,9 +192,9 @@ def _name(args: argparse.Namespace) -> str:
 def run(args: argparse.Namespace) -> int:
     from retarget.cli import EXIT_INTERRUPTED
     from retarget.cli.replay import number
-    from retarget.control import LoopConfig
     from retarget.telemetry import TelemetryWriter
     from retarget.teleop import EXIT_UNREACHED, Follower, run_teleop
+    from retarget.tick_loop import LoopConfig
 
     opts = _check_options(args)
     config = LoopConfig(
