@@ -23,6 +23,10 @@ What the servos answer, as the e-Manual says:
 * Bad CRC: the servo addressed by a unicast instruction answers CRC Error (3), as the Protocol 2.0 error
   table defines (set ``crc_error_reply=False`` to make servos ignore such packets instead); broadcast
   packets with a bad CRC are ignored.  Bytes before a header, and broken headers, are skipped.
+
+With the wire model on (``Faults(wire=True)``), a host that starts writing while a status packet is still on
+the wire collides with it on a real half-duplex line: the simulator still delivers both, but records the
+instruction in :attr:`SimBus.collisions` (and logs a warning), so a test can assert a driver never does it.
 """
 
 from __future__ import annotations
@@ -110,6 +114,9 @@ class SimBus:
         self.log: deque[LogEntry] = deque(maxlen=100_000)  #: the last instructions received
         self._parser = PacketParser()
         self._wire_free_at = -math.inf  #: clock time the last byte scheduled on the wire ends
+        self._replies_end = -math.inf  #: clock time the last status packet's last byte is on the wire
+        #: instructions the host started writing while a status packet was still on the wire (wire model on)
+        self.collisions: list[LogEntry] = []
         self._lock = threading.RLock()
         self.t_start = self.clock.now()
         self._apply_scheduled_faults()
@@ -244,15 +251,27 @@ class SimBus:
         """Receive ``data`` written at ``now`` (default ``clock.now()``); the replies with their arrival times."""
         with self._lock:
             now = self.clock.now() if now is None else now
+            collides = self.faults.wire and now < self._replies_end
             # half duplex: these bytes go out once the wire is free of earlier instructions and replies
             cursor = max(now, self._wire_free_at) if self.faults.wire else now
             cursor += wire_time(len(data), self.baud) if self.faults.wire else 0.0
             replies: list[Reply] = []
             for packet in self._parser.feed(data):
-                self.log.append(LogEntry(cursor, packet.id, packet.instruction, packet.params, packet.crc_ok))
+                entry = LogEntry(cursor, packet.id, packet.instruction, packet.params, packet.crc_ok)
+                self.log.append(entry)
+                if collides:
+                    self.collisions.append(entry)
+                    log.warning(
+                        "collision: the host wrote %s at t=%.6f s while a status packet was on the wire until %.6f s",
+                        _instruction_name(packet.instruction),
+                        now,
+                        self._replies_end,
+                    )
                 out = self._dispatch(packet, cursor)
                 cursor = self._schedule(out, cursor, replies)
             self._wire_free_at = cursor
+            if replies:
+                self._replies_end = max(self._replies_end, max(r.due for r in replies))
             return replies
 
     def _schedule(self, out: list[tuple[SimServo, bytes]], cursor: float, replies: list[Reply]) -> float:
@@ -441,3 +460,10 @@ class _FastSender:
 
 def _u16(p: bytes, k: int) -> int:
     return p[k] | p[k + 1] << 8
+
+
+def _instruction_name(code: int) -> str:
+    try:
+        return Instruction(code).name
+    except ValueError:
+        return f"instruction 0x{code:02x}"

@@ -90,3 +90,33 @@ def test_the_port_hands_a_reply_over_at_its_due_time_not_before():
     assert port.in_waiting == 8 + 6 * 8
     assert len(port.read(1000)) == 8 + 6 * 8
     port.close()
+
+
+@pytest.mark.parametrize(
+    ("after", "collides"),
+    [
+        pytest.param(-1e-6, True, id="while-the-reply-is-on-the-wire"),
+        pytest.param(0.0, False, id="as-its-last-byte-arrives"),
+    ],
+)
+def test_a_host_write_during_a_reply_is_a_collision(after, collides):
+    ids = range(1, 7)
+    bus = sim.SimBus.from_ids(ids, "XM430-W350", clock=SteppingClock(), return_delay_time=0, faults=Faults(wire=True))
+    read = build_instruction(0xFE, Instruction.FAST_SYNC_READ, u16(132) + u16(4) + bytes(ids))
+    goal = sync_write_goal(ids)
+    (reply,) = bus.feed(read, now=0.0)
+    assert bus.feed(goal, now=reply.due + after) == []
+    assert [(e.instruction, e.id) for e in bus.collisions] == ([(Instruction.SYNC_WRITE, 0xFE)] if collides else [])
+    # a host write right behind its own earlier write is no collision: the UART sends them one after the other
+    bus.feed(goal, now=reply.due + 1.0)
+    bus.feed(goal, now=reply.due + 1.0 + 1e-6)
+    assert len(bus.collisions) == int(collides)
+
+
+def test_without_the_wire_model_nothing_is_timed_so_nothing_collides():
+    ids = range(1, 7)
+    bus = sim.SimBus.from_ids(ids, "XM430-W350", clock=SteppingClock(), return_delay_time=0)
+    read = build_instruction(0xFE, Instruction.FAST_SYNC_READ, u16(132) + u16(4) + bytes(ids))
+    bus.feed(read, now=0.0)
+    bus.feed(read, now=0.0)
+    assert bus.collisions == []
