@@ -301,6 +301,8 @@ class Link:
             result = self.ph.syncReadTx(self.port, read.address, read.length, list(read.ids), len(read.ids), fast)
         else:
             result = self.ph.bulkReadTx(self.port, list(read.bulk_param), len(read.bulk_param), False)
+        if result == COMM_PORT_BUSY:  # another transaction holds the port: its lock is not ours to clear
+            return False
         if result != COMM_SUCCESS:
             self.port.is_using = False
             return False
@@ -337,6 +339,20 @@ class Link:
         marked busy until the replies are read (a Ctrl-C there is undone by :meth:`release`).
         """
         return read._replace(sent=self._send_read(read, read.fast))
+
+    def drain(self, read: GroupRead) -> None:
+        """Wait for the status packets of ``read`` (sent, replies not taken) and drop them: no retries, no errors.
+
+        So the next instruction does not go out while servos still answer on the half-duplex wire, and their
+        packets are not taken for its reply.  At most the SDK's packet timeout when a servo stays silent.
+        """
+        try:
+            if read.sent:
+                self._receive_read(read, read.fast, True)
+        except Exception as exc:  # noqa: BLE001 - only the wait matters: the replies are dropped either way
+            log.debug("draining a group read: %s", exc)
+        finally:
+            self.port.is_using = False
 
     def receive_group_read(self, read: GroupRead, *, what: str = "") -> dict[int, Reply]:
         """The replies of a group read sent by :meth:`send_group_read`, with the retries of :meth:`group_read`."""

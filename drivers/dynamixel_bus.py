@@ -259,8 +259,11 @@ class DynamixelBus:
 
     @property
     def link(self) -> Link:
+        """The open link, for one transaction; BusError when not connected or while a position read is in flight."""
         if self._link is None:
             raise BusError(f"not connected (port {self.port_name}): call connect() first")
+        if self._pending is not None:
+            raise BusError("a position read is in flight: call collect_positions() first")
         return self._link
 
     def __enter__(self) -> DynamixelBus:
@@ -310,9 +313,14 @@ class DynamixelBus:
         link = self._link
         if link is None:
             return
-        link.release()  # a Ctrl-C inside the SDK leaves the port marked busy; an uncollected read's replies go too
-        self._pending = None
         interrupted: KeyboardInterrupt | None = None
+        if self._pending is not None:  # a read whose replies may still be on the wire: nothing goes out before them
+            try:
+                link.drain(self._pending)
+            except KeyboardInterrupt as exc:
+                interrupted = exc
+            self._pending = None
+        link.release()  # a Ctrl-C inside the SDK leaves the port marked busy
         try:
             if self._torque and self.shutdown_mode is ShutdownMode.REST:
                 try:
@@ -370,11 +378,10 @@ class DynamixelBus:
 
         Failures, retries and alerts as :meth:`read_positions`.
         """
-        read = self._pending
-        if read is None:
+        link = self._link
+        if self._pending is None or link is None:
             raise BusError("no position read in flight: call request_positions() first")
-        self._pending = None
-        replies = self._read_joint_replies(read)
+        replies = self._receive_joint_replies(link)
         self._ticks += 1
         return np.array(
             [
@@ -478,8 +485,6 @@ class DynamixelBus:
         link = self.link
         if self._faulted:
             raise BusError(f"bus is faulted ({self._faulted}); no more goals are sent: close it")
-        if self._pending is not None:
-            raise BusError("a position read is in flight: call collect_positions() first")
         return link
 
     def _require_gripper(self) -> ServoPlan:
@@ -522,19 +527,22 @@ class DynamixelBus:
             dtype=np.int64,
         )
 
-    def _read_joint_replies(self, sent: GroupRead | None = None, *, check_active: bool = True) -> dict[int, Reply]:
-        """Present Position replies of every joint servo (shadows too, so their alerts are seen), by ID: of the
-        read ``sent`` (by request_positions), else of one read sent now."""
-        if sent is None:
-            link = self._require_active() if check_active else self.link
-            sent = link.send_group_read(self._position_reads[self._use_fast])
-        else:
-            link = self.link
+    def _read_joint_replies(self, *, check_active: bool = True) -> dict[int, Reply]:
+        """Present Position replies of every joint servo (shadows too, so their alerts are seen), by ID."""
+        link = self._require_active() if check_active else self.link
+        self._pending = link.send_group_read(self._position_reads[self._use_fast])
+        return self._receive_joint_replies(link)
+
+    def _receive_joint_replies(self, link: Link) -> dict[int, Reply]:
+        """The replies of the position read in flight (``_pending``).  It stays in flight when a Ctrl-C cuts
+        this short, so that close() waits for its replies before it sends anything."""
         try:
-            replies = link.receive_group_read(sent, what="Present Position")
+            replies = link.receive_group_read(self._pending, what="Present Position")  # type: ignore[arg-type]
         except BusError as exc:
+            self._pending = None
             self._faulted = str(exc)
             raise
+        self._pending = None
         if self._use_fast and link.fast_failures >= 3:
             log.warning("FAST_SYNC_READ failed 3 times in a row: using plain SYNC_READ from now on")
             self._use_fast = False

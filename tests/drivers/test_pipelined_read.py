@@ -54,6 +54,9 @@ def test_the_read_goes_out_at_the_request_and_is_taken_at_the_collect(bus, sim_b
         pytest.param(lambda bus: bus.read_positions(), id="read"),
         pytest.param(lambda bus: bus.write_goals(bus.arm.home), id="write"),
         pytest.param(lambda bus: bus.read_state(), id="read-state"),
+        pytest.param(lambda bus: bus.set_torque(True), id="torque-on"),
+        pytest.param(lambda bus: bus.read_gripper(), id="read-gripper"),
+        pytest.param(lambda bus: bus.write_gripper(0.0), id="write-gripper"),
     ],
 )
 def test_nothing_else_uses_the_bus_while_a_read_is_in_flight(bus, call):
@@ -73,14 +76,37 @@ def test_collect_without_a_request_is_an_error(bus):
         bus.collect_positions()  # one collect per request
 
 
-def test_close_with_a_read_in_flight_shuts_down_and_reconnects(arm, url, clock, sim_bus):
-    bus = DynamixelBus(arm, url, clock=clock, shutdown="off", check_latency=False)
-    bus.connect()
+def test_torque_off_with_a_read_in_flight_is_refused_and_changes_nothing(bus, sim_bus, arm):
     bus.request_positions()
-    bus.close()  # the uncollected replies are dropped with the port's input, torque goes off
-    assert all(sim_bus.servo(i).get("Torque Enable") == 0 for i in arm.servo_ids)
-    with bus:
-        np.testing.assert_allclose(bus.read_positions(), arm.rest, atol=0.01)
+    with pytest.raises(BusError, match="a position read is in flight"):
+        bus.set_torque(False)
+    assert all(sim_bus.servo(i).get("Torque Enable") == 1 for i in arm.servo_ids)
+    assert bus.status().retries == bus.status().errors == 0
+    bus.collect_positions()
+
+
+@pytest.mark.parametrize("shutdown", ["rest", "off"])
+@pytest.mark.parametrize("fast", [True, False], ids=["fast-read", "plain-read"])
+def test_close_with_a_read_in_flight_waits_for_its_replies(arm, clock, shutdown, fast):
+    """On a half-duplex wire the shutdown's packets must not go out while the servos still answer the read (a
+    collision), nor take its status packets for their own acknowledgements."""
+    simbus = sim.SimBus.from_arm(arm, clock=clock, faults=sim.Faults(wire=True))
+    url = sim.attach(simbus)
+    try:
+        bus = DynamixelBus(arm, url, clock=clock, shutdown=shutdown, fast_read=fast, check_latency=False)
+        bus.connect()
+        bus.write_goals(bus.read_positions() + 0.05)
+        bus.request_positions()
+        n = len(simbus.log)
+        bus.close()
+        assert simbus.collisions == []
+        assert len(simbus.log) > n and all(simbus.servo(i).get("Torque Enable") == 0 for i in arm.servo_ids)
+        with bus:  # and it connects again
+            q = bus.read_positions()
+        if shutdown == "rest":  # reached within the bus's rest tolerance (0.02 rad) before torque went off
+            np.testing.assert_allclose(q, arm.rest, atol=0.03)
+    finally:
+        sim.unregister(url.removeprefix("sim://@"))
 
 
 def test_a_lost_reply_of_a_pipelined_read_is_retried(bus, sim_bus):
@@ -133,10 +159,12 @@ def test_send_then_receive_equals_one_group_read(link, sim_bus, requests, fast):
 
 
 def test_a_read_whose_instruction_did_not_go_out_is_sent_again(link, sim_bus):
-    link.port.is_using = True  # the SDK refuses to send: COMM_PORT_BUSY
-    read = link.send_group_read(GroupRead.plan({1: (132, 4), 2: (132, 4)}))
-    assert not read.sent and not link.port.is_using
+    link.port.is_using = True  # another transaction holds the port: the SDK refuses to send (COMM_PORT_BUSY)
     n = len(sim_bus.log)
+    read = link.send_group_read(GroupRead.plan({1: (132, 4), 2: (132, 4)}))
+    assert not read.sent and link.port.is_using  # its lock is left alone
+    assert len(sim_bus.log) == n
+    link.port.is_using = False  # that transaction ends
     replies = link.receive_group_read(read)
     assert sorted(replies) == [1, 2] and link.retry_count == 1
     assert [e.instruction for e in list(sim_bus.log)[n:]] == [Instruction.SYNC_READ]
