@@ -61,7 +61,7 @@ from typing import TYPE_CHECKING, NamedTuple, Protocol
 
 import numpy as np
 
-from retarget.errors import ConfigError, RetargetError
+from retarget.errors import ConfigError
 from retarget.summary import RunSummary, summarize
 
 if TYPE_CHECKING:
@@ -321,10 +321,12 @@ def run_ticks(
     target = np.full(3, np.nan)  # held ticks report the last target
     present = None
 
-    def finish(done: _Tick, present: np.ndarray | None, bus_time: float) -> None:
-        """What needs the read-back of tick ``done``: its bus time and retries, observe, progress and record."""
+    def finish(done: _Tick, present: np.ndarray | None, collect_time: float) -> None:
+        """What needs the read-back of tick ``done``: the time it took to collect (pipelined; added to the
+        tick's bus time), its retries, observe, progress and record."""
         nonlocal retries_seen, next_progress
-        bus_l.append(bus_time)
+        bus_l[done.index] += collect_time
+        bus_time = bus_l[done.index]
         retries = 0
         if bus is not None:
             retries_now = bus.status().retries
@@ -449,14 +451,29 @@ def run_ticks(
             clamp_l.append(clamped)
             vlim_l.append(vlimited)
             comp_l.append(c1 - c0)
-            tick = _Tick(k, slot_time, target, q_cmd, error, sweeps, converged, clamped, vlimited, overrun, c1 - c0, c2)
+            bus_l.append(c2 - c1 - collect_time)  # pipelined: its write and request; the collect is added later
+            tick = _Tick(
+                len(bus_l) - 1,
+                k,
+                slot_time,
+                target,
+                q_cmd,
+                error,
+                sweeps,
+                converged,
+                clamped,
+                vlimited,
+                overrun,
+                c1 - c0,
+                c2,
+            )
             if pipeline:
-                done, pending = pending, tick._replace(bus_time=c2 - c1 - collect_time)
+                done, pending = pending, tick
                 done_present, pending_present = pending_present, None
                 if done is not None:
-                    finish(done, done_present, done.bus_time + collect_time)
+                    finish(done, done_present, collect_time)
             else:
-                finish(tick, present, c2 - c1)
+                finish(tick, present, 0.0)
             k = next_k
             ticks += 1
         if pending is not None:  # the last tick's read-back
@@ -464,20 +481,24 @@ def run_ticks(
             c1 = perf()
             present = bus.collect_positions()  # type: ignore[union-attr]
             done, pending = pending, None
-            finish(done, present, done.bus_time + perf() - c1)
+            finish(done, present, perf() - c1)
         st.interrupted = stop.is_set()
     except KeyboardInterrupt:
         st.interrupted = True
         log.info("interrupted at tick %d", k)
         if pending is not None:  # its goals went out: record it, with its read-back if that is still to collect
-            try:
-                present = pending_present
-                if in_flight:
-                    in_flight = False
+            present = pending_present
+            if in_flight:
+                in_flight = False
+                try:
                     present = bus.collect_positions()  # type: ignore[union-attr]
-                finish(pending, present, pending.bus_time)
-            except (KeyboardInterrupt, RetargetError) as exc:
-                log.info("the last tick's record is lost: %r", exc)
+                except (KeyboardInterrupt, Exception) as exc:  # noqa: BLE001 - the run is ending: report, go on
+                    present = None
+                    log.warning("tick %d: its read-back is lost: %s", pending.slot, str(exc) or type(exc).__name__)
+            try:
+                finish(pending, present, 0.0)
+            except KeyboardInterrupt:
+                log.info("tick %d: its record was cut short", pending.slot)
     wall1 = perf()
     st.last_slot = last_slot
     if first < 0:  # split the lead-in's ticks off the series and counters
@@ -503,6 +524,7 @@ def run_ticks(
 class _Tick(NamedTuple):
     """What :func:`run_ticks` keeps of a tick until its read-back is in (see ``finish``)."""
 
+    index: int  #: of the tick in the TickStats series
     slot: int
     time: float
     target: np.ndarray
@@ -515,4 +537,3 @@ class _Tick(NamedTuple):
     overrun: bool
     compute_time: float
     ended: float  #: perf_counter when its bus calls returned
-    bus_time: float = 0.0  #: pipeline: seconds of its write and request

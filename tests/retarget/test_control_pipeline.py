@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 from drivers.control_table import Instruction
-from retarget.control import ClipSource, ControlLoop, LoopConfig, TickRecord, run_ticks
+from retarget.bus import connected as connected_bus
+from retarget.control import ClipSource, ControlLoop, LoopConfig, TickRecord, run_on_bus, run_ticks
 from retarget.ik import CCDSolver
-from tests.retarget.test_control import circle_targets
+from tests.retarget.test_control import circle_targets, servo_angles, torque
 
 READS = (Instruction.SYNC_READ, Instruction.FAST_SYNC_READ)
 
@@ -101,3 +102,55 @@ def test_a_source_that_observes_is_not_pipelined(arm, sim_bus):
     # a dry run has no read-back to pipeline
     stats = run_ticks(arm, Observing(), CCDSolver(arm), config=LoopConfig(), clock=clock, pipeline=True)
     assert stats.ticks == 3 and stats.holds == 3
+
+
+@pytest.mark.parametrize("pipeline", [True, False], ids=["pipelined", "in-tick-read"])
+def test_a_failing_callback_leaves_no_read_on_the_wire_under_the_shutdown(arm, sim_bus, pipeline):
+    """The exception ends the run with a read-back in flight (pipelined): the bus's close waits for its replies
+    before the rest move and the torque off, so nothing collides on the half-duplex wire."""
+    from drivers import DynamixelBus
+
+    simbus, url, clock = sim_bus()
+
+    def on_tick(r: TickRecord) -> None:
+        if r.tick == 30:
+            raise RuntimeError("telemetry disk full")
+
+    loop = ControlLoop(arm, circle_targets(arm), clock=clock, on_tick=on_tick, pipeline=pipeline)
+    bus = DynamixelBus(arm, url, clock=clock, shutdown="rest")
+    with pytest.raises(RuntimeError, match="telemetry disk full"):
+        run_on_bus(loop, bus)
+    assert simbus.collisions == [] and not bus.connected
+    assert torque(simbus, arm) == [0] * 8
+    np.testing.assert_allclose(servo_angles(simbus, arm), arm.rest, atol=0.06)
+
+
+def test_ctrl_c_when_the_last_read_back_fails_still_records_the_tick(arm, sim_bus, caplog):
+    """Ctrl-C (from a callback) with the last tick's read-back in flight and a servo gone: the tick is recorded
+    without its present positions, the loop's series stay aligned, and the bus's shutdown names the servo."""
+    from drivers import DynamixelBus
+    from retarget.errors import BusError
+
+    simbus, url, clock = sim_bus()
+    records: list[TickRecord] = []
+
+    def on_tick(r: TickRecord) -> None:
+        records.append(r)
+        if r.tick == 30:
+            simbus.servo(4).unplug()  # after tick 31's read went out: tick 32's read gets no reply from it
+        if r.tick == 31:
+            raise KeyboardInterrupt
+
+    config = LoopConfig(lead_in_speed=0.0)
+    loop = ControlLoop(arm, circle_targets(arm), config=config, clock=clock, on_tick=on_tick)
+    bus = DynamixelBus(arm, url, clock=clock, shutdown="rest", retries=0)
+    stats = {}
+    with pytest.raises(BusError, match=r"^servo 4: could not turn torque off"):
+        with connected_bus(bus):
+            stats["summary"] = loop.run(bus)
+    summary = stats["summary"]
+    assert summary.interrupted and summary.ticks == 33  # slots 0..32: 32's goals went out before the Ctrl-C
+    assert [r.tick for r in records] == list(range(33))
+    assert records[31].q_present is not None and records[32].q_present is None
+    assert "tick 32: its read-back is lost: servo 4: no status packet" in caplog.text
+    assert simbus.collisions == []
