@@ -28,7 +28,7 @@ tick then runs no IK (0 sweeps) and steps 3-5 move toward that pose.
 two.  ``bus.request_positions()`` sends the read right after the write, and the next tick collects it with
 ``bus.collect_positions()`` after its own steps 1-3, just before its write.  The host computes while the
 status packets are on the wire instead of leaving the wire idle while it computes: on a bus-bound loop
-(1 Mbps, six servos: 1.06 ms of wire time per tick) that takes the loop from 88-89 % of the wire rate
+(1 Mbps, six servos: 1.06 ms of wire time per tick) that takes the loop from 88-91 % of the wire rate
 to 93-96 % (``bench/bench_replay.py``).  The wire carries the same packets in the same order (write k,
 read k, write k+1, ...) and nothing depends on the read-back: IK starts from the commanded pose.  A tick's
 record (``on_tick``, ``on_progress``) then comes a tick later, once its read-back is in; the last one
