@@ -315,21 +315,6 @@ class Link:
             return self._collect_fast(read.ids, read.length) if sent else None
         return self._collect(read.lengths) if sent else {}
 
-    def sync_read_once(self, ids: Sequence[int], address: int, length: int) -> dict[int, Reply]:
-        """One SYNC_READ; the replies that came, by ID (missing IDs are absent)."""
-        read = GroupRead.plan({i: (address, length) for i in ids})
-        return self._receive_read(read, False, self._send_read(read, False)) or {}
-
-    def fast_sync_read_once(self, ids: Sequence[int], address: int, length: int) -> dict[int, Reply] | None:
-        """One FAST_SYNC_READ (a single status packet for all); None when it failed as a whole."""
-        read = GroupRead.plan({i: (address, length) for i in ids})
-        return self._receive_read(read, True, self._send_read(read, True))
-
-    def bulk_read_once(self, requests: Mapping[int, tuple[int, int]]) -> dict[int, Reply]:
-        """One BULK_READ of ``{id: (address, length)}``; the replies that came, by ID."""
-        read = GroupRead.plan(requests, bulk=True)
-        return self._receive_read(read, False, self._send_read(read, False)) or {}
-
     def send_group_read(self, read: GroupRead) -> GroupRead:
         """Send the instruction of ``read`` (from :meth:`GroupRead.plan`) and return without waiting: ``read``
         marked sent or not.
@@ -417,11 +402,11 @@ class GroupRead(NamedTuple):
     sent: bool = False  #: the first try's instruction went out (``send_group_read``)
 
     @classmethod
-    def plan(cls, requests: Mapping[int, tuple[int, int]], *, fast: bool = False, bulk: bool = False) -> GroupRead:
+    def plan(cls, requests: Mapping[int, tuple[int, int]], *, fast: bool = False) -> GroupRead:
         """The read of ``{id: (address, length)}``: SYNC_READ when all share the address and length (FAST_SYNC_READ
-        with ``fast``), else (or with ``bulk``) BULK_READ."""
+        with ``fast``), else BULK_READ."""
         shapes = set(requests.values())
-        same = len(shapes) == 1 and not bulk
+        same = len(shapes) == 1
         address, length = next(iter(shapes)) if same else (0, 0)
         param: list[int] = []
         if not same:
