@@ -488,7 +488,9 @@ def run_ticks(
         log.info("interrupted at tick %d", k)
         if pending is not None:  # its goals went out: record it, with its read-back if that is still to collect
             present = pending_present
-            if in_flight:
+            # in flight with its own read-back already in: the read is the next tick's (Ctrl-C came before that
+            # tick was kept), which no record claims; the bus's close waits for its replies
+            if in_flight and pending_present is None:
                 in_flight = False
                 try:
                     present = bus.collect_positions()  # type: ignore[union-attr]
