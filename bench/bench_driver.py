@@ -22,8 +22,8 @@ from dynamixel_sdk import COMM_SUCCESS, GroupSyncRead, GroupSyncWrite, PacketHan
 
 from drivers.dynamixel_bus import DynamixelBus
 from drivers.port import open_port
-from retarget.arm_config import load_arm
-from retarget.bus import ShutdownMode
+from retarget.arm.config import load_arm
+from retarget.control.bus import ShutdownMode
 
 TARGET_RATIO = 1.5  #: the driver may cost at most this many times the raw SDK calls per tick
 URL = "sim://wx250s?rdt=0"  #: Return Delay Time 0 on both sides, as the driver configures it

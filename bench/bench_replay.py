@@ -32,10 +32,10 @@ from pathlib import Path
 import numpy as np
 
 import retarget
-from retarget.clock import MonotonicClock, VirtualClock
 from retarget.control import ControlLoop, LoopConfig, TickRecord
+from retarget.control.clock import MonotonicClock, VirtualClock
 from retarget.mapping import retarget_targets
-from retarget.mapping_config import MappingConfig, Side
+from retarget.mapping.config import MappingConfig, Side
 
 REPO = Path(__file__).resolve().parent.parent
 SHARED = Path(os.environ.get("RETARGET_SHARED_BVH", REPO.parent / "shared" / "bvh"))

@@ -20,7 +20,7 @@ import serial
 from dynamixel_sdk import COMM_SUCCESS, GroupSyncRead, GroupSyncWrite, PacketHandler, PortHandler
 
 import sim
-from retarget.clock import MonotonicClock, VirtualClock
+from retarget.control.clock import MonotonicClock, VirtualClock
 from sim.faults import Faults, wire_time
 from sim.server import PtyServer
 

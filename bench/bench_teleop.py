@@ -21,11 +21,11 @@ import time
 import numpy as np
 
 import retarget
-from retarget.clock import VirtualClock
 from retarget.control import LoopConfig, TickRecord
+from retarget.control.clock import VirtualClock
 from retarget.teleop import Follower, run_teleop
-from retarget.teleop_input import TargetBounds, TargetGate
-from retarget.teleop_sources import Source
+from retarget.teleop.gate import TargetBounds, TargetGate
+from retarget.teleop.sources import Source
 
 
 def check(ok: bool) -> str:
@@ -55,7 +55,7 @@ def garbage(n: int) -> list[bytes]:
 def gate_rate(messages: list[bytes], repeat: int) -> float:
     import logging
 
-    logging.getLogger("retarget.teleop_input").setLevel(logging.ERROR)  # measure parsing, not logging
+    logging.getLogger("retarget.teleop.gate").setLevel(logging.ERROR)  # measure parsing, not logging
     arm = retarget.load_arm("wx250s")
     rates = []
     for _ in range(repeat + 1):

@@ -23,7 +23,7 @@ _LAZY = {
     "ServoSettings": "drivers.servo_plan",
     "ServoState": "drivers.dynamixel_bus",
     "plan_servos": "drivers.servo_plan",
-    "ShutdownMode": "retarget.bus",
+    "ShutdownMode": "retarget.control.bus",
     "UrlPortHandler": "drivers.port",
     "open_port": "drivers.port",
     "check_latency_timer": "drivers.latency",

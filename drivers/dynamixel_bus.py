@@ -55,8 +55,8 @@ from drivers.control_table import MODEL_BY_NUMBER, VOLT_PER_UNIT, hardware_error
 from drivers.latency import check_latency_timer
 from drivers.port import open_port
 from drivers.servo_plan import MAX_PROFILE_MS, Profile, ServoPlan, ServoSettings, plan_servos
-from retarget.bus import BusStatus, ShutdownMode, close_after_failure
-from retarget.clock import Clock, MonotonicClock
+from retarget.control.bus import BusStatus, ShutdownMode, close_after_failure
+from retarget.control.clock import Clock, MonotonicClock
 from retarget.errors import BusError
 
 if TYPE_CHECKING:
@@ -160,7 +160,7 @@ class DynamixelBus:
         clock: Clock | None = None,
     ):
         if isinstance(arm, str):
-            from retarget.arm_config import load_arm
+            from retarget.arm.config import load_arm
 
             arm = load_arm(arm)
         self.arm = arm

@@ -19,14 +19,14 @@ from retarget.errors import BusError, BvhError, ConfigError, RetargetError
 __version__ = "0.1.0"
 
 _LAZY = {
-    "load_bvh": "retarget.bvh",
-    "Motion": "retarget.motion",
-    "load_arm": "retarget.arm_config",
-    "Arm": "retarget.arm",
-    "solve_ik": "retarget.ik",
-    "IKResult": "retarget.ik",
-    "CCDSolver": "retarget.ik",
-    "Weighting": "retarget.ik",
+    "load_bvh": "retarget.bvh.parse",
+    "Motion": "retarget.bvh.motion",
+    "load_arm": "retarget.arm.config",
+    "Arm": "retarget.arm.model",
+    "solve_ik": "retarget.ik.ccd",
+    "IKResult": "retarget.ik.ccd",
+    "CCDSolver": "retarget.ik.ccd",
+    "Weighting": "retarget.ik.ccd",
 }
 
 __all__ = ["BusError", "BvhError", "ConfigError", "RetargetError", "__version__", *_LAZY]

@@ -1,6 +1,6 @@
-"""Write the bundled demo clip ``retarget/data/demo.bvh``.
+"""Write the bundled demo clip ``retarget/bvh/data/demo.bvh``.
 
-    python scripts/make_demo_clip.py            # rewrite retarget/data/demo.bvh
+    python scripts/make_demo_clip.py            # rewrite retarget/bvh/data/demo.bvh
     python scripts/make_demo_clip.py -o x.bvh   # somewhere else
 
 A ~10 s, 60 fps, centimetre clip on a small CMU-named skeleton (~170 cm,
@@ -24,7 +24,7 @@ import numpy as np
 
 FPS = 60
 DURATION = 10.5  # seconds
-OUT = Path(__file__).resolve().parent.parent / "retarget" / "data" / "demo.bvh"
+OUT = Path(__file__).resolve().parent.parent / "retarget" / "bvh" / "data" / "demo.bvh"
 
 # name, parent, offset (cm).  Rest pose: T-pose, Y up, facing +Z (the character's left is +X).
 SKELETON: list[tuple[str, str | None, tuple[float, float, float]]] = [

@@ -40,7 +40,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from drivers.control_table import BROADCAST_ID, MAX_ID, FactoryReset, Instruction, StatusError
-from retarget.clock import Clock, MonotonicClock
+from retarget.control.clock import Clock, MonotonicClock
 from retarget.errors import ConfigError
 from sim.faults import Faults, ReplyFaults, wire_time
 from sim.protocol import Packet, PacketParser, build_fast_read_status, build_status

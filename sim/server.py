@@ -27,7 +27,7 @@ import tty
 from collections import deque
 from typing import Self
 
-from retarget.clock import VirtualClock
+from retarget.control.clock import VirtualClock
 from sim.bus import Reply, SimBus
 
 log = logging.getLogger(__name__)

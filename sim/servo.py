@@ -58,7 +58,7 @@ from drivers.control_table import (
 from drivers.control_table import (
     model as lookup_model,
 )
-from retarget.clock import Clock, MonotonicClock
+from retarget.control.clock import Clock, MonotonicClock
 from sim.profile import Profile, ramp_profile, rest, time_profile, velocity_profile
 
 log = logging.getLogger(__name__)

@@ -41,7 +41,7 @@ from urllib.parse import parse_qs, urlsplit
 
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException
 
-from retarget.clock import MonotonicClock, VirtualClock
+from retarget.control.clock import MonotonicClock, VirtualClock
 from retarget.errors import ConfigError, RetargetError
 from sim.bus import Reply, SimBus
 from sim.faults import QUERY_KEYS, Faults

@@ -7,29 +7,12 @@ Tests that need them are skipped, with the reason, when they are absent.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import dynamixel_sdk.port_handler
 import pytest
 
-REPO = Path(__file__).resolve().parent.parent
-SHARED_BVH = Path(os.environ.get("RETARGET_SHARED_BVH", REPO.parent / "shared" / "bvh"))
-
-
-def shared_clips() -> list[Path]:
-    """The real clips, sorted by name; empty when the folder is absent."""
-    return sorted(SHARED_BVH.glob("*.bvh")) if SHARED_BVH.is_dir() else []
-
-
-def shared_clip_params() -> list:
-    """``shared_clips()`` for ``parametrize``: one skipped case, with the reason, when the folder is absent."""
-    clips = shared_clips()
-    if clips:
-        return [pytest.param(c, id=c.stem) for c in clips]
-    reason = f"real BVH clips not found at {SHARED_BVH} (set RETARGET_SHARED_BVH)"
-    return [pytest.param(None, id="no-shared-clips", marks=pytest.mark.skip(reason=reason))]
-
+from tests.helpers import SHARED_BVH
 
 #: The SDK waits ``2 * LATENCY_TIMER + 2`` ms for a reply.  A real servo answers within microseconds, but a
 #: simulated one on a pty is a thread or process of this test run: on a loaded 2-core CI machine it can be

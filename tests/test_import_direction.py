@@ -19,18 +19,18 @@ FORBIDDEN = ("drivers", "sim", "serial", "dynamixel_sdk")
 #: retarget's math modules, and the control loop that only knows the ``retarget.bus.Bus`` protocol
 PURE = (
     "retarget.bvh",
-    "retarget.bvh_fk",
-    "retarget.motion",
-    "retarget.skeleton",
-    "retarget.arm_config",
-    "retarget.urdf",
-    "retarget.kinematics",
+    "retarget.bvh.fk",
+    "retarget.bvh.motion",
+    "retarget.bvh.skeleton",
+    "retarget.arm.config",
+    "retarget.arm.urdf",
+    "retarget.arm.kinematics",
     "retarget.ik",
     "retarget.mapping",
-    "retarget.tick_loop",
+    "retarget.control.loop",
     "retarget.control",
     "retarget.teleop",
-    "retarget.telemetry",
+    "retarget.control.telemetry",
 )
 
 

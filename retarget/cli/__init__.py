@@ -28,6 +28,7 @@ COMMANDS: tuple[str, ...] = ("replay", "teleop", "export", "inspect", "arm", "sc
 EXIT_OK = 0
 EXIT_USAGE = 2  #: bad input: a file, a config key, an option value
 EXIT_BUS = 4  #: the bus failed (no reply, hardware alert)
+EXIT_UNREACHED = 3  #: teleop: the last target was not reached within tolerance
 EXIT_INTERRUPTED = 130
 
 EPILOG = """\

@@ -19,7 +19,7 @@ if TYPE_CHECKING:
 
 DEFAULT_ARM = "wx250s"
 
-_URDF_SUFFIXES = (".urdf", ".xml")  # as retarget.arm_config treats them
+_URDF_SUFFIXES = (".urdf", ".xml")  # as retarget.arm.config treats them
 
 
 def add_arm_arguments(parser: argparse.ArgumentParser | Any, *, default: str = DEFAULT_ARM) -> None:
@@ -37,7 +37,7 @@ def add_link_arguments(parser: argparse.ArgumentParser | Any) -> None:
 def load_arm_option(args: argparse.Namespace) -> Arm:
     """The arm of ``--arm`` (None: the default arm), ``--base``, ``--tip``; ConfigError naming the option."""
     import retarget
-    from retarget.arm_config import resolve_arm
+    from retarget.arm.config import resolve_arm
 
     name = args.arm if args.arm is not None else DEFAULT_ARM
     base, tip = args.base, args.tip

@@ -22,9 +22,9 @@ from retarget.errors import ConfigError
 
 if TYPE_CHECKING:
     from retarget.arm import Arm
-    from retarget.bus import Bus
-    from retarget.clock import Clock
     from retarget.control import LoopConfig
+    from retarget.control.bus import Bus
+    from retarget.control.clock import Clock
 
 SHUTDOWN_MODES = ("hold", "rest", "off")
 
@@ -133,7 +133,7 @@ def build_bus(args: argparse.Namespace, arm: Arm, config: LoopConfig | None = No
     also limits speed itself (:func:`servo_limits`).
     """
     from drivers import DynamixelBus
-    from retarget.clock import MonotonicClock, VirtualClock
+    from retarget.control.clock import MonotonicClock, VirtualClock
 
     limits = servo_limits(arm, config)
     port: str | None = args.port

@@ -60,7 +60,7 @@ def parse_point(text: str, option: str = "--ik") -> tuple[float, float, float]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from retarget.arm_config import list_arms, load_arm
+    from retarget.arm.config import list_arms, load_arm
 
     if args.list:
         names = list_arms()

@@ -40,8 +40,8 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    from retarget.clock import VirtualClock
     from retarget.control import ControlLoop, TickRecord
+    from retarget.control.clock import VirtualClock
 
     inputs = load_inputs(args)
     config = loop_config(args, inputs.motion)

@@ -21,18 +21,18 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from retarget.bus import connected
 from retarget.cli import print_json
 from retarget.cli._arm import add_arm_arguments, load_arm_option
 from retarget.cli._bus import add_bus_arguments, build_bus, check_bus_options, sigint_stops
+from retarget.control.bus import connected
 from retarget.errors import ConfigError
 
 if TYPE_CHECKING:
     from retarget.arm import Arm
-    from retarget.clock import Clock
+    from retarget.bvh.motion import Motion
     from retarget.control import ControlLoop, LoopConfig, TickRecord
+    from retarget.control.clock import Clock
     from retarget.mapping import Targets
-    from retarget.motion import Motion
 
 EXAMPLES = """\
 examples:
@@ -65,7 +65,7 @@ def add_clip_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def add_mapping_arguments(parser: argparse.ArgumentParser) -> None:
-    """Flags overriding the arm file's ``[mapping]`` table (see ``retarget.mapping_config``)."""
+    """Flags overriding the arm file's ``[mapping]`` table (see ``retarget.mapping.config``)."""
     g = parser.add_argument_group("mapping (overrides the arm file's [mapping] table)")
     g.add_argument("--side", default=None, metavar="left|right", help="which human arm drives the robot")
     g.add_argument(
@@ -113,7 +113,7 @@ def load_inputs(args: argparse.Namespace) -> Inputs:
     """Load the clip and the arm, build the mapping from the arm file + flags, and map every frame."""
     import retarget
     from retarget.mapping import retarget_targets
-    from retarget.mapping_config import MappingConfig
+    from retarget.mapping.config import MappingConfig
 
     if args.clip is None:
         from retarget.bvh import DEMO_CLIP
@@ -140,7 +140,7 @@ def load_inputs(args: argparse.Namespace) -> Inputs:
 
 def _flag_names(overrides: dict[str, Any]) -> dict[str, Any]:
     """Validate flag values one by one so an error names the flag (``--floor``), not the mapping key."""
-    from retarget.mapping_config import MappingConfig
+    from retarget.mapping.config import MappingConfig
 
     out = {}
     for name, value in overrides.items():
@@ -227,9 +227,9 @@ def _progress_printer(loop: ControlLoop) -> Callable[[TickRecord], None]:
 
 def run(args: argparse.Namespace) -> int:
     from retarget.cli import EXIT_INTERRUPTED
-    from retarget.clock import MonotonicClock, VirtualClock
     from retarget.control import ControlLoop
-    from retarget.telemetry import TelemetryWriter
+    from retarget.control.clock import MonotonicClock, VirtualClock
+    from retarget.control.telemetry import TelemetryWriter
 
     check_bus_options(args)
     if args.dry_run and args.port is not None:

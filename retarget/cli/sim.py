@@ -85,7 +85,7 @@ def _tcp_address(text: str) -> tuple[str, int]:
 
 def build_bus(args: argparse.Namespace):
     """The SimBus the options describe (real-time clock)."""
-    from retarget.clock import MonotonicClock
+    from retarget.control.clock import MonotonicClock
     from sim import SimBus
     from sim.faults import Faults
     from sim.transport import parse_ids

@@ -20,18 +20,18 @@ import sys
 import threading
 from typing import TYPE_CHECKING, Any
 
-from retarget.bus import connected
-from retarget.cli import print_json
+from retarget.cli import EXIT_UNREACHED, print_json
 from retarget.cli._arm import add_arm_arguments, load_arm_option
 from retarget.cli._bus import add_bus_arguments, build_bus, check_bus_options, sigint_stops
+from retarget.control.bus import connected
 from retarget.errors import ConfigError
 
 if TYPE_CHECKING:
     from retarget.arm import Arm
+    from retarget.control.loop import TickRecord
     from retarget.teleop import Follower, TeleopResult
-    from retarget.teleop_input import BasePose, TargetGate
-    from retarget.teleop_sources import Source
-    from retarget.tick_loop import TickRecord
+    from retarget.teleop.gate import BasePose, TargetGate
+    from retarget.teleop.sources import Source
 
 DEFAULT_UDP_TIMEOUT = 1.0  #: s, the dead-man timeout of --udp unless --timeout says otherwise
 DEFAULT_UDP_MAX_LAG = 1.0  #: s, --udp skips targets this far behind the newest unless --max-lag says otherwise
@@ -143,7 +143,7 @@ def _check_options(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _gate(args: argparse.Namespace, arm: Arm, clock: Any, opts: dict[str, Any]) -> TargetGate:
-    from retarget.teleop_input import BasePose, TargetBounds, TargetGate
+    from retarget.teleop.gate import BasePose, TargetBounds, TargetGate
 
     try:
         bounds = TargetBounds.for_arm(arm, margin=opts["margin"], box=opts["box"])
@@ -157,7 +157,7 @@ def _gate(args: argparse.Namespace, arm: Arm, clock: Any, opts: dict[str, Any]) 
 
 
 def _source(args: argparse.Namespace, gate: TargetGate) -> Source:
-    from retarget.teleop_sources import OneShotSource, StdinSource, UdpSource, parse_address
+    from retarget.teleop.sources import OneShotSource, StdinSource, UdpSource, parse_address
 
     if args.to is not None:
         return OneShotSource(gate, args.to, rpy=args.rpy)
@@ -192,9 +192,9 @@ def _name(args: argparse.Namespace) -> str:
 def run(args: argparse.Namespace) -> int:
     from retarget.cli import EXIT_INTERRUPTED
     from retarget.cli.replay import number
-    from retarget.telemetry import TelemetryWriter
-    from retarget.teleop import EXIT_UNREACHED, Follower, run_teleop
-    from retarget.tick_loop import LoopConfig
+    from retarget.control.loop import LoopConfig
+    from retarget.control.telemetry import TelemetryWriter
+    from retarget.teleop import Follower, run_teleop
 
     opts = _check_options(args)
     config = LoopConfig(
@@ -292,8 +292,8 @@ def _interactive(arm, setup, gate, config, opts, stop, telemetry) -> TeleopResul
     """The curses UI around the loop: keys feed a KeySource, the screen is drawn from on_tick."""
     import curses
 
+    from retarget.cli.tui import Jog, KeySource, TerminalUI
     from retarget.teleop import Follower, run_teleop, tool_point
-    from retarget.teleop_tui import Jog, KeySource, TerminalUI
 
     q0 = setup.bus.read_positions()
     jog = Jog(target=tool_point(arm, q0), home=tool_point(arm, arm.home), bounds=gate.bounds)

@@ -13,7 +13,7 @@ import retarget
 import sim
 from drivers.dynamixel_bus import DynamixelBus
 from retarget.arm import Arm
-from retarget.clock import VirtualClock
+from retarget.control.clock import VirtualClock
 from sim.server import PtyServer, TcpServer
 
 

@@ -11,35 +11,12 @@ import pytest
 import retarget
 import sim
 from drivers import units
-from drivers.control_table import EEPROM_END, HardwareError, Instruction
+from drivers.control_table import EEPROM_END, HardwareError
 from drivers.dynamixel_bus import DynamixelBus, Profile, plan_servos
-from retarget.arm_config import list_arms
-from retarget.bus import Bus, ShutdownMode
+from retarget.arm.config import list_arms
+from retarget.control.bus import Bus, ShutdownMode
 from retarget.errors import BusError, ConfigError
-
-GOAL = 116
-
-
-def goal_writes(sim_bus: sim.SimBus) -> list[dict[int, int]]:
-    """Every Goal Position SYNC_WRITE the simulated wire carried, decoded: [{id: ticks}, ...]."""
-    out = []
-    for entry in sim_bus.log:
-        p = entry.params
-        if entry.instruction != Instruction.SYNC_WRITE or int.from_bytes(p[0:2], "little") != GOAL:
-            continue
-        size = int.from_bytes(p[2:4], "little")
-        body = p[4:]
-        out.append(
-            {
-                body[k]: int.from_bytes(body[k + 1 : k + 1 + size], "little", signed=True)
-                for k in range(0, len(body), size + 1)
-            }
-        )
-    return out
-
-
-def torques(sim_bus: sim.SimBus) -> dict[int, int]:
-    return {s.id: s.get("Torque Enable") for s in sim_bus.servos}
+from tests.helpers import goal_writes, torques
 
 
 def expected_limits(lower: float, upper: float, offset: int = 0) -> tuple[int, int]:

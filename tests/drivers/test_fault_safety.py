@@ -17,7 +17,7 @@ from drivers import units
 from drivers.control_table import HardwareError, Instruction
 from drivers.dynamixel_bus import Profile, hold_tick
 from retarget.arm import Arm
-from retarget.bus import ShutdownMode
+from retarget.control.bus import ShutdownMode
 from retarget.errors import BusError
 
 GOAL = 116

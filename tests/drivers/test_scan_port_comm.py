@@ -18,8 +18,8 @@ from drivers.control_table import ALERT_BIT, HardwareError
 from drivers.dynamixel_bus import DynamixelBus
 from drivers.port import UrlPortHandler, open_port
 from drivers.scan import ALL_BAUDS, parse_ids, scan
-from retarget.bus import ShutdownMode
 from retarget.cli import main
+from retarget.control.bus import ShutdownMode
 from retarget.errors import BusError, ConfigError
 from sim.server import TcpServer
 

@@ -12,10 +12,10 @@ import retarget
 import sim
 from drivers import units
 from drivers.dynamixel_bus import DynamixelBus, plan_servos
-from retarget.bus import ShutdownMode
-from retarget.clock import VirtualClock
+from retarget.control.bus import ShutdownMode
+from retarget.control.clock import VirtualClock
 from retarget.errors import BusError
-from tests.drivers.test_dynamixel_bus import goal_writes
+from tests.helpers import goal_writes
 
 
 @pytest.fixture(params=["wx250s", "koch"], ids=["wx250s", "koch"])

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 import retarget
-from retarget.clock import VirtualClock
+from retarget.control.clock import VirtualClock
 
 
 @pytest.fixture(scope="session")

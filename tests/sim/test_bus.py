@@ -6,7 +6,7 @@ import pytest
 
 import sim
 from drivers.control_table import Instruction, StatusError
-from retarget.clock import VirtualClock
+from retarget.control.clock import VirtualClock
 from retarget.errors import ConfigError
 from sim.faults import Faults, ReplyFaults, wire_time
 from sim.protocol import PacketParser, build_instruction, build_status, decode, parse_fast_read_status

@@ -17,10 +17,10 @@ from dynamixel_sdk import (
 
 import sim
 from drivers.control_table import ALERT_BIT, HardwareError, StatusError
-from retarget.clock import VirtualClock
+from retarget.control.clock import VirtualClock
 from sim.faults import Faults, ReplyFaults
 from sim.servo import PULSES_PER_S2_PER_ACCEL_UNIT, PULSES_PER_S_PER_VELOCITY_UNIT
-from tests.sim.conftest import TRANSPORTS, close_rig, open_rig
+from tests.helpers import TRANSPORTS, close_rig, open_rig
 
 GOAL, PRESENT, TORQUE = 116, 132, 64
 

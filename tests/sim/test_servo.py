@@ -7,7 +7,7 @@ import random
 import pytest
 
 from drivers.control_table import ALERT_BIT, DriveMode, HardwareError, StatusError
-from retarget.clock import VirtualClock
+from retarget.control.clock import VirtualClock
 from sim.servo import PULSES_PER_S2_PER_ACCEL_UNIT, PULSES_PER_S_PER_VELOCITY_UNIT, SimServo
 
 

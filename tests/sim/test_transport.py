@@ -7,7 +7,7 @@ import serial
 from serial.serialutil import PortNotOpenError, SerialException
 
 import sim
-from retarget.clock import MonotonicClock, VirtualClock
+from retarget.control.clock import MonotonicClock, VirtualClock
 from retarget.errors import ConfigError
 from sim.faults import Faults
 from sim.protocol import PacketParser, build_instruction

@@ -1,0 +1,330 @@
+"""Load arm descriptions: bundled TOML files, user TOML files and URDF + servo TOML.
+
+``load_arm("wx250s")`` resolves a bare name to the bundled ``config/arms/wx250s.toml``
+(installed: ``retarget/_config/arms``; source checkout: ``<repo>/config/arms``).
+``load_arm("my_arm.toml")`` reads a user file; ``load_arm("robot.urdf", base=..., tip=...)``
+imports a URDF chain with its servo file beside it (see :mod:`retarget.arm.urdf`).
+
+TOML schema (every angle in the file is in DEGREES, lengths in metres; the loaded
+:class:`~retarget.arm.Arm` holds radians)::
+
+    name = "wx250s"                   # required, the arm's short name
+    title = "WidowX-250 6DOF"         # optional, human name
+    baud = 1_000_000                  # optional, bus baud rate (default 1 Mbps)
+
+    [tool]                            # the tool point in the last joint's child frame
+    link = "ee_gripper_link"          # optional, documentary: the URDF link it stands for
+    xyz = [0.093575, 0.0, 0.0]        # metres
+    rpy = [0.0, 0.0, 0.0]             # optional, degrees (URDF roll-pitch-yaw)
+
+    [poses]
+    home = [0, 0, 0, 0, 0, 0]         # required, degrees, one per joint, inside the limits
+    rest = [0, -103.1, 88.8, 0, 45.8, 0]  # optional (default: home), the "sleep" pose
+
+    [[joints]]                        # one table per joint, base to tip
+    name = "waist"                    # required, unique
+    type = "revolute"                 # optional, the only type
+    xyz = [0.0, 0.0, 0.072]           # required, origin parent -> joint frame, metres
+    rpy = [0.0, 0.0, 0.0]             # optional, degrees
+    axis = [0, 0, 1]                  # required, in the joint frame, any non-zero length
+    limits = [-180, 180]              # required, [lower, upper] degrees, lower < upper
+    max_velocity = 180                # required, degrees per second, > 0
+    servos = [                        # required, primary first, then shadows
+        { id = 2, model = "XM430-W350" },
+        { id = 3, model = "XM430-W350", direction = -1 },   # direction +1/-1, offset ticks
+    ]
+
+    [gripper]                         # optional: driven on its own, outside IK
+    name = "gripper"                  # optional
+    servo = { id = 9, model = "XL430-W250" }
+    limits = [-21.7, 72.7]            # required, degrees of the servo shaft
+
+    [mapping]                         # optional, any keys: read by retarget.mapping.config
+
+A servo table has ``id`` (0-252, unique over the arm), ``model`` (one of
+``retarget.arm.SERVO_MODELS``), ``direction`` (+1 normal, -1 reverse; default +1) and
+``offset`` (zero offset in ticks, -2048..2048, default 0: 0 rad = 2048 + offset ticks).
+
+Every problem is a :class:`~retarget.errors.ConfigError` naming the file, the key
+path (``joints[2].limits``) and the bad value: unknown keys, missing keys, wrong
+types, unknown servo models, ``lower >= upper``, duplicate servo IDs, a zero axis,
+a pose outside the limits, TOML syntax errors (with the line).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from collections.abc import Iterable, Mapping
+from os import PathLike
+from pathlib import Path
+from typing import Any
+
+import retarget
+from retarget.arm.model import SERVO_MODELS, Arm, Gripper, Joint, JointType, Servo
+from retarget.errors import ConfigError
+
+__all__ = ["load_arm", "list_arms", "arm_dirs", "resolve_arm", "read_toml", "ArmFileReader"]
+
+#: Suffixes that make ``load_arm`` treat its argument as a path.
+_TOML_SUFFIXES = (".toml",)
+_URDF_SUFFIXES = (".urdf", ".xml")
+
+_TOP_KEYS = {"name", "title", "baud", "tool", "poses", "joints", "gripper", "mapping"}
+_JOINT_KEYS = {"name", "type", "xyz", "rpy", "axis", "limits", "max_velocity", "servos"}
+_SERVO_KEYS = {"id", "model", "direction", "offset"}
+_GRIPPER_KEYS = {"name", "servo", "limits"}
+_TOOL_KEYS = {"link", "xyz", "rpy"}
+_POSE_KEYS = {"home", "rest"}
+_MISSING = object()
+
+
+def arm_dirs() -> list[Path]:
+    """The folders searched for bundled arms, in order: the installed copy, then the source checkout."""
+    package = Path(retarget.__file__).resolve().parent
+    return [package / "_config" / "arms", package.parent / "config" / "arms"]
+
+
+def list_arms() -> list[str]:
+    """Names of the bundled arms (the file stems), sorted."""
+    names: set[str] = set()
+    for folder in arm_dirs():
+        if folder.is_dir():
+            names.update(p.stem for p in folder.glob("*.toml"))
+    return sorted(names)
+
+
+def _looks_like_path(name: str | PathLike[str]) -> bool:
+    text = str(name)
+    return isinstance(name, PathLike) or "/" in text or "\\" in text or text.endswith(_TOML_SUFFIXES + _URDF_SUFFIXES)
+
+
+def resolve_arm(name_or_path: str | PathLike[str]) -> Path:
+    """The file of an arm: a path as given, or a bare name looked up in :func:`arm_dirs`."""
+    if _looks_like_path(name_or_path):
+        path = Path(name_or_path)
+        if not path.is_file():
+            raise ConfigError("arm description not found", path=path)
+        return path
+    name = str(name_or_path)
+    for folder in arm_dirs():
+        candidate = folder / f"{name}.toml"
+        if candidate.is_file():
+            return candidate
+    known = ", ".join(list_arms()) or "none found"
+    raise ConfigError(f"unknown arm {name!r}; known arms: {known} (or give a .toml or .urdf path)", key="arm")
+
+
+def load_arm(name_or_path: str | PathLike[str], *, base: str | None = None, tip: str | None = None) -> Arm:
+    """Load an arm description.
+
+    ``name_or_path`` is a bundled arm name (see :func:`list_arms`), a ``.toml`` file in the
+    schema of this module, or a ``.urdf`` file with its servo file beside it (``base`` and
+    ``tip`` name the chain's end links when the URDF is ambiguous; see :mod:`retarget.arm.urdf`).
+    Raises :class:`~retarget.errors.ConfigError`.
+    """
+    path = resolve_arm(name_or_path)
+    if path.suffix.lower() in _URDF_SUFFIXES:
+        from retarget.arm.urdf import load_urdf_arm
+
+        return load_urdf_arm(path, base=base, tip=tip)
+    if base is not None or tip is not None:
+        raise ConfigError("base/tip only apply to a URDF file", path=path, key="base" if base else "tip")
+    return ArmFileReader(path).arm(read_toml(path))
+
+
+def read_toml(path: Path) -> dict[str, Any]:
+    """Parse a TOML file; syntax errors become a ConfigError with the line."""
+    try:
+        with open(path, "rb") as f:
+            return tomllib.load(f)
+    except tomllib.TOMLDecodeError as exc:
+        m = re.search(r"\(at line (\d+), column (\d+)\)", str(exc))
+        where = f"line {m.group(1)}" if m else None
+        raise ConfigError(f"invalid TOML: {exc}", path=path, key=where) from exc
+    except OSError as exc:
+        raise ConfigError(f"cannot read: {exc.strerror or exc}", path=path) from exc
+
+
+def _is_number(v: object) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+
+class ArmFileReader:
+    """Validating readers for the pieces of an arm file; every error names ``path`` and the key path.
+
+    Also used by :mod:`retarget.arm.urdf` for its servo file.
+    """
+
+    def __init__(self, path: Path):
+        self.path = path
+        self.seen_ids: dict[int, str] = {}
+
+    # -- primitives -----------------------------------------------------------------------------------------------
+    def error(self, message: str, key: str, value: object = _MISSING) -> ConfigError:
+        if value is _MISSING:
+            return ConfigError(message, path=self.path, key=key)
+        return ConfigError(message, path=self.path, key=key, value=value)
+
+    def table(self, value: object, key: str, allowed: Iterable[str], required: Iterable[str] = ()) -> Mapping:
+        if not isinstance(value, Mapping):
+            raise self.error("expected a table", key, value)
+        allowed = set(allowed)
+        for k in value:
+            if k not in allowed:
+                raise self.error(f"unknown key {k!r}; expected one of {', '.join(sorted(allowed))}", _join(key, k))
+        for k in required:
+            if k not in value:
+                raise self.error("missing required key", _join(key, k))
+        return value
+
+    def number(self, value: object, key: str, *, positive: bool = False) -> float:
+        if not _is_number(value):
+            raise self.error("expected a finite number", key, value)
+        if positive and value <= 0:
+            raise self.error("expected a number > 0", key, value)
+        return float(value)
+
+    def integer(self, value: object, key: str, lo: int, hi: int) -> int:
+        if not isinstance(value, int) or isinstance(value, bool):
+            raise self.error("expected an integer", key, value)
+        if not lo <= value <= hi:
+            raise self.error(f"expected an integer in {lo}..{hi}", key, value)
+        return value
+
+    def string(self, value: object, key: str) -> str:
+        if not isinstance(value, str) or not value:
+            raise self.error("expected a non-empty string", key, value)
+        return value
+
+    def vector(self, value: object, key: str, n: int = 3) -> tuple[float, ...]:
+        if not isinstance(value, list) or len(value) != n or not all(_is_number(v) for v in value):
+            raise self.error(f"expected a list of {n} numbers", key, value)
+        return tuple(float(v) for v in value)
+
+    def degrees3(self, value: object, key: str) -> tuple[float, float, float]:
+        x, y, z = self.vector(value, key)
+        return (math.radians(x), math.radians(y), math.radians(z))
+
+    def axis(self, value: object, key: str) -> tuple[float, float, float]:
+        x, y, z = self.vector(value, key)
+        norm = math.sqrt(x * x + y * y + z * z)
+        if norm < 1e-9:
+            raise self.error("joint axis has zero length", key, value)
+        return (x / norm, y / norm, z / norm)
+
+    def limits(self, value: object, key: str) -> tuple[float, float]:
+        lo, hi = self.vector(value, key, 2)
+        if lo >= hi:
+            raise self.error("lower limit must be below upper limit", key, value)
+        return math.radians(lo), math.radians(hi)
+
+    # -- pieces ---------------------------------------------------------------------------------------------------
+    def servo(self, value: object, key: str) -> Servo:
+        t = self.table(value, key, _SERVO_KEYS, ("id", "model"))
+        sid = self.integer(t["id"], f"{key}.id", 0, 252)
+        model = t["model"]
+        if model not in SERVO_MODELS:
+            raise self.error(f"unknown servo model; known models: {', '.join(SERVO_MODELS)}", f"{key}.model", model)
+        direction = t.get("direction", 1)
+        if direction not in (1, -1) or isinstance(direction, bool):
+            raise self.error("direction must be 1 (normal) or -1 (reverse)", f"{key}.direction", direction)
+        offset = self.integer(t.get("offset", 0), f"{key}.offset", -2048, 2048)
+        if sid in self.seen_ids:
+            raise self.error(f"duplicate servo ID (also {self.seen_ids[sid]})", f"{key}.id", sid)
+        self.seen_ids[sid] = f"{key}.id"
+        return Servo(id=sid, model=model, direction=int(direction), offset=offset)
+
+    def servos(self, value: object, key: str) -> tuple[Servo, ...]:
+        if not isinstance(value, list) or not value:
+            raise self.error("expected a non-empty list of servo tables", key, value)
+        return tuple(self.servo(v, f"{key}[{i}]") for i, v in enumerate(value))
+
+    def gripper(self, value: object, key: str = "gripper") -> Gripper:
+        t = self.table(value, key, _GRIPPER_KEYS, ("servo", "limits"))
+        name = self.string(t.get("name", "gripper"), f"{key}.name")
+        servo = self.servo(t["servo"], f"{key}.servo")
+        lo, hi = self.limits(t["limits"], f"{key}.limits")
+        return Gripper(name=name, servo=servo, lower=lo, upper=hi)
+
+    def poses(self, value: object, joints: tuple[Joint, ...], key: str = "poses") -> tuple[tuple, tuple]:
+        t = self.table(value, key, _POSE_KEYS, ("home",))
+        home = self.pose(t["home"], f"{key}.home", joints)
+        rest = self.pose(t["rest"], f"{key}.rest", joints) if "rest" in t else home
+        return home, rest
+
+    def pose(self, value: object, key: str, joints: tuple[Joint, ...]) -> tuple[float, ...]:
+        pose = tuple(math.radians(v) for v in self.vector(value, key, len(joints)))
+        for i, (a, j) in enumerate(zip(pose, joints, strict=True)):
+            if not j.lower - 1e-9 <= a <= j.upper + 1e-9:
+                raise self.error(
+                    f"outside the limits of joint {j.name!r} "
+                    f"[{math.degrees(j.lower):g}, {math.degrees(j.upper):g}] deg",
+                    f"{key}[{i}]",
+                    value[i],
+                )
+        return tuple(min(max(a, j.lower), j.upper) for a, j in zip(pose, joints, strict=True))
+
+    def mapping(self, value: object, key: str = "mapping") -> dict[str, Any]:
+        if not isinstance(value, Mapping):
+            raise self.error("expected a table", key, value)
+        return dict(value)
+
+    def joint(self, value: object, key: str) -> Joint:
+        t = self.table(value, key, _JOINT_KEYS, ("name", "xyz", "axis", "limits", "max_velocity", "servos"))
+        name = self.string(t["name"], f"{key}.name")
+        kind = t.get("type", "revolute")
+        if kind != JointType.REVOLUTE.value:
+            raise self.error("only 'revolute' joints are supported", f"{key}.type", kind)
+        lo, hi = self.limits(t["limits"], f"{key}.limits")
+        return Joint(
+            name=name,
+            origin_xyz=self.vector(t["xyz"], f"{key}.xyz"),
+            origin_rpy=self.degrees3(t.get("rpy", [0.0, 0.0, 0.0]), f"{key}.rpy"),
+            axis=self.axis(t["axis"], f"{key}.axis"),
+            lower=lo,
+            upper=hi,
+            max_velocity=math.radians(self.number(t["max_velocity"], f"{key}.max_velocity", positive=True)),
+            servos=self.servos(t["servos"], f"{key}.servos"),
+        )
+
+    def arm(self, data: Mapping[str, Any]) -> Arm:
+        """A whole arm file (the schema in the module docstring)."""
+        t = self.table(data, "", _TOP_KEYS, ("name", "joints", "poses"))
+        name = self.string(t["name"], "name")
+        title = self.string(t.get("title", name), "title")
+        baud = self.integer(t.get("baud", 1_000_000), "baud", 9600, 10_500_000)
+        raw_joints = t["joints"]
+        if not isinstance(raw_joints, list) or not raw_joints:
+            raise self.error("expected at least one [[joints]] table", "joints", raw_joints)
+        joints = tuple(self.joint(v, f"joints[{i}]") for i, v in enumerate(raw_joints))
+        names: dict[str, int] = {}
+        for i, j in enumerate(joints):
+            if j.name in names:
+                raise self.error(f"duplicate joint name (also joints[{names[j.name]}])", f"joints[{i}].name", j.name)
+            names[j.name] = i
+        tool = self.table(t.get("tool", {}), "tool", _TOOL_KEYS)
+        if "link" in tool:
+            self.string(tool["link"], "tool.link")
+        tool_xyz = self.vector(tool.get("xyz", [0.0, 0.0, 0.0]), "tool.xyz")
+        tool_rpy = self.degrees3(tool.get("rpy", [0.0, 0.0, 0.0]), "tool.rpy")
+        home, rest = self.poses(t["poses"], joints)
+        gripper = self.gripper(t["gripper"]) if "gripper" in t else None
+        return Arm(
+            name=name,
+            title=title,
+            joints=joints,
+            tool_xyz=tool_xyz,  # type: ignore[arg-type]
+            tool_rpy=tool_rpy,
+            home_pose=home,
+            rest_pose=rest,
+            baud=baud,
+            gripper=gripper,
+            mapping=self.mapping(t.get("mapping", {})),
+            source=self.path,
+        )
+
+
+def _join(key: str, sub: str) -> str:
+    return f"{key}.{sub}" if key else sub

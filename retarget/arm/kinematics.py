@@ -1,0 +1,154 @@
+"""Forward kinematics of an :class:`~retarget.arm.Arm`.
+
+Frames follow URDF: joint ``i`` sits at ``origin_i = (xyz, rpy)`` in the frame of
+joint ``i-1`` (the base frame for ``i = 0``) and rotates its child frame about
+``axis_i`` (a unit vector in that child frame).  ``rpy`` is fixed-axis
+roll-pitch-yaw, ``R = Rz(yaw) @ Ry(pitch) @ Rx(roll)``.  The tool point is a
+constant transform in the last joint's child frame.
+
+    T_tool = Π_i [origin_i @ Rot(axis_i, q_i)] @ tool
+
+Everything is base-frame metres and radians.  :class:`Chain` precomputes the
+constant transforms once per arm (``Arm.chain``); ``fk`` and ``fk_batch`` are
+thin wrappers over it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from retarget.arm.model import Arm
+
+__all__ = ["Chain", "fk", "fk_batch", "rpy_matrix", "matrix_rpy", "axis_angle_matrix", "transform"]
+
+
+def rpy_matrix(rpy: Sequence[float]) -> np.ndarray:
+    """``(3, 3)`` rotation of URDF roll-pitch-yaw ``rpy`` (radians): ``Rz(y) @ Ry(p) @ Rx(r)``."""
+    r, p, y = (float(v) for v in rpy)
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+
+
+def matrix_rpy(R: np.ndarray) -> tuple[float, float, float]:
+    """URDF roll-pitch-yaw (radians) of a ``(3, 3)`` rotation; the inverse of :func:`rpy_matrix`.
+
+    At gimbal lock (pitch = +-pi/2) roll is set to 0.
+    """
+    R = np.asarray(R, dtype=np.float64)
+    pitch = float(np.arcsin(np.clip(-R[2, 0], -1.0, 1.0)))
+    if abs(R[2, 0]) < 1.0 - 1e-12:
+        roll = float(np.arctan2(R[2, 1], R[2, 2]))
+        yaw = float(np.arctan2(R[1, 0], R[0, 0]))
+    else:
+        roll = 0.0
+        yaw = float(np.arctan2(-R[0, 1], R[1, 1]))
+    clean = [0.0 if abs(v) < 1e-15 else v for v in (roll, pitch, yaw)]
+    return clean[0], clean[1], clean[2]
+
+
+def axis_angle_matrix(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Rotations about unit ``axis`` ``(3,)`` by ``angle`` ``(...)`` radians -> ``(..., 3, 3)`` (Rodrigues)."""
+    angle = np.asarray(angle, dtype=np.float64)
+    x, y, z = (float(v) for v in axis)
+    c, s = np.cos(angle), np.sin(angle)
+    t = 1.0 - c
+    out = np.empty(angle.shape + (3, 3))
+    out[..., 0, 0] = t * x * x + c
+    out[..., 0, 1] = t * x * y - s * z
+    out[..., 0, 2] = t * x * z + s * y
+    out[..., 1, 0] = t * x * y + s * z
+    out[..., 1, 1] = t * y * y + c
+    out[..., 1, 2] = t * y * z - s * x
+    out[..., 2, 0] = t * x * z - s * y
+    out[..., 2, 1] = t * y * z + s * x
+    out[..., 2, 2] = t * z * z + c
+    return out
+
+
+def transform(xyz: Sequence[float], rpy: Sequence[float]) -> np.ndarray:
+    """``(4, 4)`` homogeneous transform of a URDF origin (metres, radians)."""
+    T = np.eye(4)
+    T[:3, :3] = rpy_matrix(rpy)
+    T[:3, 3] = np.asarray(xyz, dtype=np.float64)
+    return T
+
+
+class Chain:
+    """The constant part of an arm's kinematics, computed once.
+
+    Attributes (all base-frame-independent constants):
+
+    - ``origins``: ``(n_joints, 4, 4)`` parent -> joint transforms;
+    - ``axes``: ``(n_joints, 3)`` unit joint axes in each joint's child frame;
+    - ``tool``: ``(4, 4)`` last child frame -> tool point;
+    - ``lower``/``upper``: ``(n_joints,)`` limits, radians.
+    """
+
+    def __init__(self, arm: Arm):
+        self.n = arm.n_joints
+        self.origins = np.stack([transform(j.origin_xyz, j.origin_rpy) for j in arm.joints])
+        axes = np.array([j.axis for j in arm.joints], dtype=np.float64).reshape(self.n, 3)
+        self.axes = axes / np.linalg.norm(axes, axis=1, keepdims=True)
+        self.tool = transform(arm.tool_xyz, arm.tool_rpy)
+        self.lower = arm.lower
+        self.upper = arm.upper
+
+    def _check(self, q: np.ndarray, what: str = "q") -> np.ndarray:
+        q = np.asarray(q, dtype=np.float64)
+        if q.shape[-1:] != (self.n,):
+            raise ValueError(f"Expected {what} of shape (..., {self.n}) for {self.n} joints, got {q.shape}")
+        return q
+
+    def fk(self, q: np.ndarray | Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+        """``(T_tool (4, 4), points (n_joints + 1, 3))`` for ``q`` ``(n_joints,)`` radians; base frame, metres."""
+        q = self._check(q)
+        if q.ndim != 1:
+            raise ValueError(f"Expected q of shape ({self.n},), got {q.shape}; use fk_batch for many poses")
+        T = np.eye(4)
+        points = np.empty((self.n + 1, 3))
+        rot = np.eye(4)
+        for i in range(self.n):
+            T = T @ self.origins[i]
+            points[i] = T[:3, 3]
+            rot[:3, :3] = axis_angle_matrix(self.axes[i], q[i])
+            T = T @ rot
+        T = T @ self.tool
+        points[self.n] = T[:3, 3]
+        return T, points
+
+    def fk_batch(self, Q: np.ndarray) -> np.ndarray:
+        """Tool poses ``(n, 4, 4)`` for joint angles ``Q`` ``(n, n_joints)`` radians; base frame, metres."""
+        Q = self._check(Q, "Q")
+        if Q.ndim != 2:
+            raise ValueError(f"Expected Q of shape (n, {self.n}), got {Q.shape}")
+        T = np.broadcast_to(np.eye(4), (Q.shape[0], 4, 4)).copy()
+        rot = np.broadcast_to(np.eye(4), (Q.shape[0], 4, 4)).copy()
+        for i in range(self.n):
+            T = T @ self.origins[i]
+            rot[:, :3, :3] = axis_angle_matrix(self.axes[i], Q[:, i])
+            T = T @ rot
+        return T @ self.tool
+
+
+def fk(arm: Arm, q: np.ndarray | Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+    """Forward kinematics: ``(T_tool (4, 4), points (n_joints + 1, 3))``, base frame, metres.
+
+    ``q`` is ``(n_joints,)`` radians (limits are not enforced here).  ``points`` holds
+    every joint origin, base to tip, then the tool point.
+    """
+    return arm.chain.fk(q)
+
+
+def fk_batch(arm: Arm, Q: np.ndarray) -> np.ndarray:
+    """Tool poses ``(n, 4, 4)`` of joint angles ``Q`` ``(n, n_joints)`` radians, base frame, metres."""
+    return arm.chain.fk_batch(Q)

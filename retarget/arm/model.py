@@ -1,0 +1,177 @@
+"""Arm descriptions: joints, limits, servos, tool point and poses.
+
+An :class:`Arm` is a serial chain of revolute joints from the base frame to a
+tool point.  Angles are radians and lengths metres everywhere in code; the
+TOML files under ``config/arms/`` hold angles in degrees (see
+``retarget.arm.config``; URDF import in ``retarget.arm.urdf``).  Instances are
+frozen: build them with ``retarget.load_arm``.
+
+    arm = retarget.load_arm("wx250s")
+    T, points = arm.fk(arm.home)    # (4, 4) tool pose, (n_joints + 1, 3) joint origins + tool, metres
+    arm.lower, arm.upper            # (n_joints,) radians
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from retarget.arm.kinematics import Chain
+
+#: Servo models the arm descriptions may name; ``drivers.control_table`` holds their registers.
+SERVO_MODELS: tuple[str, ...] = ("XL430-W250", "XM430-W350", "XL330-M288", "XM540-W270")
+
+Vec3 = tuple[float, float, float]
+
+
+class JointType(enum.Enum):
+    REVOLUTE = "revolute"
+
+
+@dataclass(frozen=True)
+class Servo:
+    """One Dynamixel servo driving a joint (or the gripper).
+
+    ``direction`` is +1 for the servo's normal direction and -1 for reverse
+    (Drive Mode bit 0).  ``offset`` is the zero offset in ticks: the joint's
+    0 rad sits at ``2048 + offset`` ticks.
+    """
+
+    id: int
+    model: str
+    direction: int = 1
+    offset: int = 0
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A revolute joint: origin (parent -> child frame), axis in the child frame, limits, servos.
+
+    ``servos[0]`` is the primary servo; any further ones are shadows driven
+    with the same goal in the same sync write (mirrored by their direction).
+    """
+
+    name: str
+    origin_xyz: Vec3
+    origin_rpy: Vec3
+    axis: Vec3
+    lower: float  #: rad
+    upper: float  #: rad
+    max_velocity: float  #: rad/s
+    servos: tuple[Servo, ...]
+    type: JointType = JointType.REVOLUTE
+
+
+@dataclass(frozen=True)
+class Gripper:
+    """The gripper servo, driven on its own, outside IK.  Limits in radians of the servo shaft."""
+
+    name: str
+    servo: Servo
+    lower: float
+    upper: float
+
+
+@dataclass(frozen=True)
+class Arm:
+    """A serial arm.  See the module docstring; construct with ``retarget.load_arm``."""
+
+    name: str
+    joints: tuple[Joint, ...]
+    tool_xyz: Vec3  #: tool point in the last joint's child frame, metres
+    tool_rpy: Vec3
+    home_pose: tuple[float, ...]  #: rad, one per joint
+    rest_pose: tuple[float, ...]  #: rad, one per joint (the "sleep" pose)
+    baud: int = 1_000_000
+    gripper: Gripper | None = None
+    #: the raw ``[mapping]`` table, read and validated by retarget.mapping.config
+    mapping: Mapping[str, Any] = field(default_factory=dict)
+    source: Path | None = None  #: the file it was loaded from
+    title: str = ""  #: human name, e.g. "WidowX-250 6DOF"
+    #: private per-instance cache (precomputed kinematic chain, IK solvers); not part of equality
+    _cache: dict[str, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        n = len(self.joints)
+        if len(self.home_pose) != n or len(self.rest_pose) != n:
+            raise ValueError(
+                f"Expected home and rest poses of {n} angles, got {len(self.home_pose)} and {len(self.rest_pose)}"
+            )
+        for j in self.joints:
+            if not j.lower < j.upper:
+                raise ValueError(f"Expected lower < upper for joint {j.name!r}, got {j.lower} and {j.upper}")
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.joints)
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return tuple(j.name for j in self.joints)
+
+    @property
+    def lower(self) -> np.ndarray:
+        """``(n_joints,) float64`` lower limits, radians."""
+        return np.array([j.lower for j in self.joints], dtype=np.float64)
+
+    @property
+    def upper(self) -> np.ndarray:
+        """``(n_joints,) float64`` upper limits, radians."""
+        return np.array([j.upper for j in self.joints], dtype=np.float64)
+
+    @property
+    def max_velocity(self) -> np.ndarray:
+        """``(n_joints,) float64`` rad/s."""
+        return np.array([j.max_velocity for j in self.joints], dtype=np.float64)
+
+    @property
+    def home(self) -> np.ndarray:
+        """``(n_joints,) float64`` home pose, radians."""
+        return np.array(self.home_pose, dtype=np.float64)
+
+    @property
+    def rest(self) -> np.ndarray:
+        """``(n_joints,) float64`` rest (sleep) pose, radians."""
+        return np.array(self.rest_pose, dtype=np.float64)
+
+    @property
+    def servo_ids(self) -> tuple[int, ...]:
+        """Every servo ID of the arm: joints (primary and shadows) then the gripper."""
+        ids = [s.id for j in self.joints for s in j.servos]
+        if self.gripper is not None:
+            ids.append(self.gripper.servo.id)
+        return tuple(ids)
+
+    @property
+    def chain(self) -> Chain:
+        """The precomputed kinematic chain (constant transforms), built once per arm."""
+        chain = self._cache.get("chain")
+        if chain is None:
+            from retarget.arm.kinematics import Chain
+
+            chain = self._cache["chain"] = Chain(self)
+        return chain
+
+    def fk(self, q: np.ndarray | Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+        """Forward kinematics of joint angles ``q`` ``(n_joints,)`` radians.
+
+        Returns ``(T_tool, points)``: the ``(4, 4)`` pose of the tool point in the base
+        frame (metres) and ``(n_joints + 1, 3)`` positions of every joint origin then the
+        tool point, base frame, metres (for drawing).  See ``retarget.kinematics.fk``.
+        """
+        return self.chain.fk(q)
+
+    def clip(self, q: np.ndarray) -> np.ndarray:
+        """``q`` clipped to the joint limits, ``(..., n_joints)`` radians."""
+        return np.clip(q, self.lower, self.upper)
+
+    def within_limits(self, q: np.ndarray, *, atol: float = 0.0) -> bool:
+        """True when every angle of ``q`` ``(..., n_joints)`` lies inside the limits (plus ``atol`` rad)."""
+        q = np.asarray(q, dtype=np.float64)
+        return bool(np.all(q >= self.lower - atol) and np.all(q <= self.upper + atol))

@@ -1,0 +1,303 @@
+"""``Motion``: a parsed BVH clip, with forward kinematics for all frames at once.
+
+Frames and units: positions are in the file's units (usually centimetres) in
+the BVH world frame (usually Y up).  Angles inside are radians; the raw
+``channels`` keep the file's degrees.
+
+FK convention: a joint's local transform is its translation (OFFSET, or its
+position channels in place of the OFFSET components they name) followed by
+its rotation channels composed in listed order as intrinsic rotations
+(``Zrotation Xrotation Yrotation`` -> ``Rz @ Rx @ Ry``)::
+
+    R_world[j] = R_world[parent] @ R_local[j]
+    p_world[j] = p_world[parent] + R_world[parent] @ t_local[j]
+
+FK (:mod:`retarget.bvh.fk`) runs vectorised over blocks of ~170 frames, one
+depth level of the skeleton per step; results are computed on first use,
+cached, and returned read-only.
+
+Example::
+
+    motion = load_bvh("clip.bvh")
+    motion.positions()            # (n_frames, n_joints, 3)
+    arm = motion.arm_points("right")
+    arm.points[:, 2]              # (n_frames, 3) wrist, file units
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from retarget.bvh import skeleton
+from retarget.bvh.fk import Pose, forward_kinematics
+
+
+@dataclass(frozen=True)
+class ChannelLayout:
+    """The CHANNELS of one joint: canonical names (``"Zrotation"``, ...) and the first column in ``Motion.channels``."""
+
+    names: tuple[str, ...]
+    first_column: int
+
+    @property
+    def rotation_order(self) -> str:
+        """Axis letters of the rotation channels in file order, e.g. ``"ZXY"`` (``""`` if none)."""
+        return "".join(n[0] for n in self.names if n.endswith("rotation"))
+
+    @property
+    def position_axes(self) -> str:
+        """Axis letters of the position channels in file order, e.g. ``"XYZ"`` (``""`` if none)."""
+        return "".join(n[0] for n in self.names if n.endswith("position"))
+
+    def columns(self, kind: str) -> list[int]:
+        """Columns in ``Motion.channels`` of the ``"rotation"`` or ``"position"`` channels, in file order."""
+        return [self.first_column + i for i, n in enumerate(self.names) if n.endswith(kind)]
+
+
+@dataclass(frozen=True)
+class EndSite:
+    """An End Site: the joint it hangs from and its OFFSET (file units) in that joint's frame."""
+
+    parent: int
+    offset: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class ArmChain:
+    """Shoulder (glenohumeral), elbow and wrist of one arm over a clip.
+
+    ``points``: ``(n_frames, 3, 3)`` float64, file units, BVH world frame;
+    ``points[:, 0]`` shoulder, ``[:, 1]`` elbow, ``[:, 2]`` wrist.
+    ``names``: the joints used; an End Site wrist is named ``"forearm.L/End Site"``.
+    ``indices``: joint indices of shoulder and elbow, and of the wrist joint
+    (or, when ``wrist_is_end_site``, the index into ``Motion.end_sites``).
+    ``bone_lengths``: median upper-arm and forearm lengths.
+    """
+
+    side: str
+    names: tuple[str, str, str]
+    indices: tuple[int, int, int]
+    wrist_is_end_site: bool
+    points: np.ndarray = field(repr=False, compare=False)
+    method: str = "names"  #: how the joints were chosen: "names", "structure" or "explicit"
+
+    @property
+    def bone_lengths(self) -> tuple[float, float]:
+        """Median upper-arm and forearm lengths over the clip (file units)."""
+        upper = np.linalg.norm(self.points[:, 1] - self.points[:, 0], axis=-1)
+        fore = np.linalg.norm(self.points[:, 2] - self.points[:, 1], axis=-1)
+        if upper.size == 0:
+            return 0.0, 0.0
+        return float(np.median(upper)), float(np.median(fore))
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    a.flags.writeable = False
+    return a
+
+
+class Motion:
+    """A BVH clip: skeleton, raw channels and cached FK.
+
+    Attributes:
+        joint_names: ROOT and JOINT names in file order (End Sites excluded).
+        parents: ``(n_joints,)`` int, parent joint index, -1 for a root.
+        offsets: ``(n_joints, 3)`` float64 OFFSETs, file units.
+        layout: per joint, its :class:`ChannelLayout`.
+        end_sites: the End Sites, in file order.
+        channels: ``(n_frames, n_channels)`` float64, raw values in file order (degrees, file units).
+        frame_time: seconds per frame.
+        path: the file read, or None.
+    """
+
+    def __init__(
+        self,
+        *,
+        joint_names: tuple[str, ...],
+        parents: np.ndarray,
+        offsets: np.ndarray,
+        layout: tuple[ChannelLayout, ...],
+        end_sites: tuple[EndSite, ...],
+        channels: np.ndarray,
+        frame_time: float,
+        path: Path | None = None,
+    ):
+        n = len(joint_names)
+        parents = np.asarray(parents, dtype=np.intp)
+        offsets = np.asarray(offsets, dtype=np.float64).reshape(n, 3)
+        channels = np.asarray(channels, dtype=np.float64)
+        if parents.shape != (n,) or len(layout) != n:
+            raise ValueError(f"Expected {n} parents and layouts, got {parents.shape} and {len(layout)}")
+        if any(p >= j for j, p in enumerate(parents)):
+            raise ValueError("Expected every parent index to come before its child")
+        n_channels = sum(len(c.names) for c in layout)
+        if channels.ndim != 2 or channels.shape[1] != n_channels:
+            raise ValueError(f"Expected channels of shape (n_frames, {n_channels}), got {channels.shape}")
+        if not (frame_time > 0):
+            raise ValueError(f"Expected a positive frame time, got {frame_time}")
+        self.joint_names = tuple(joint_names)
+        self.parents = _readonly(parents)
+        self.offsets = _readonly(offsets)
+        self.layout = tuple(layout)
+        self.end_sites = tuple(end_sites)
+        self.channels = _readonly(channels)
+        self.frame_time = float(frame_time)
+        self.path = path
+        self._cached_pose: Pose | None = None
+
+    # ------------------------------------------------------------------------------------------ info
+    @property
+    def n_frames(self) -> int:
+        return int(self.channels.shape[0])
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.joint_names)
+
+    @property
+    def fps(self) -> float:
+        """Frames per second, ``1 / frame_time``."""
+        return 1.0 / self.frame_time
+
+    @property
+    def duration(self) -> float:
+        """Seconds of playback, ``n_frames * frame_time``."""
+        return self.n_frames * self.frame_time
+
+    @property
+    def rotation_orders(self) -> tuple[str, ...]:
+        """Per joint, its rotation channel axes in file order (``"ZXY"``; ``""`` if none)."""
+        return tuple(c.rotation_order for c in self.layout)
+
+    def joint_index(self, name: str) -> int:
+        """Index of the joint called ``name`` (exact match); ``KeyError`` listing nothing else if absent."""
+        try:
+            return self.joint_names.index(name)
+        except ValueError:
+            raise KeyError(f"Expected a joint name of this clip, got {name!r}") from None
+
+    def children(self, index: int) -> list[int]:
+        """Joint indices whose parent is ``index``."""
+        return [int(c) for c in np.flatnonzero(self.parents == index)]
+
+    def rest_positions(self) -> np.ndarray:
+        """``(n_joints, 3)`` joint positions from OFFSETs alone (no channels), file units."""
+        out = np.zeros((self.n_joints, 3))
+        for j, p in enumerate(self.parents):
+            out[j] = self.offsets[j] + (out[p] if p >= 0 else 0.0)
+        return out
+
+    def rest_end_site_positions(self) -> np.ndarray:
+        """``(n_end_sites, 3)`` End Site positions from OFFSETs alone, file units."""
+        rest = self.rest_positions()
+        return np.array([rest[e.parent] + np.asarray(e.offset) for e in self.end_sites]).reshape(-1, 3)
+
+    def guess_units(self) -> skeleton.UnitsGuess:
+        """The length unit suggested by the rest-pose height (see :func:`retarget.skeleton.guess_units`)."""
+        return skeleton.guess_units(np.vstack([self.rest_positions(), self.rest_end_site_positions()]))
+
+    def __repr__(self) -> str:
+        src = f" {self.path.name!r}" if self.path else ""
+        return f"<Motion{src}: {self.n_joints} joints, {self.n_frames} frames at {self.fps:.4g} fps>"
+
+    # -------------------------------------------------------------------------------------------- FK
+    def positions(self) -> np.ndarray:
+        """``(n_frames, n_joints, 3)`` float64 global joint positions, file units, BVH world frame."""
+        return self._pose().positions
+
+    def global_transforms(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(rotations (n_frames, n_joints, 3, 3), positions (n_frames, n_joints, 3))``: joint frame -> world."""
+        pose = self._pose(rotations=True)
+        return pose.rotations, pose.positions  # type: ignore[return-value]
+
+    def end_site_positions(self) -> np.ndarray:
+        """``(n_frames, n_end_sites, 3)`` float64 global End Site positions, file units."""
+        return self._pose(end_sites=True).end_sites  # type: ignore[return-value]
+
+    def _pose(self, *, rotations: bool = False, end_sites: bool = False) -> Pose:
+        """The cached FK results, computed (again, with more in it) only when something asked for is missing."""
+        pose = self._cached_pose
+        if pose is None or (rotations and pose.rotations is None) or (end_sites and pose.end_sites is None):
+            new = forward_kinematics(
+                self.parents,
+                self.offsets,
+                [lay.names for lay in self.layout],
+                [lay.first_column for lay in self.layout],
+                self.channels,
+                [e.parent for e in self.end_sites],
+                [e.offset for e in self.end_sites],
+                rotations=rotations,
+                end_sites=end_sites or rotations,
+            )
+            old = pose or new  # keep the arrays already handed out
+            pose = Pose(
+                positions=old.positions,
+                end_sites=old.end_sites if old.end_sites is not None else new.end_sites,
+                rotations=old.rotations if old.rotations is not None else new.rotations,
+            )
+            for array in (pose.positions, pose.end_sites, pose.rotations):
+                if array is not None:
+                    _readonly(array)
+            self._cached_pose = pose
+        return pose
+
+    # -------------------------------------------------------------------------------------- arms
+    def arm_points(self, side: str, *, names: tuple[str, str, str] | None = None) -> ArmChain:
+        """Shoulder, elbow and wrist of the ``"left"`` or ``"right"`` arm for every frame.
+
+        Detection by joint names (CMU, Mixamo, Collar/Shoulder/Elbow/Wrist,
+        Rigify, MakeHuman, any prefix), else by skeleton structure; see
+        :mod:`retarget.bvh.skeleton`.  ``names`` overrides detection with three
+        joint names (the wrist may be ``"<joint>/End Site"``).
+        Raises ``ValueError`` for a bad side and ``BvhError`` when no arm
+        chain (or more than one) is found.
+        """
+        found = skeleton.find_arm(
+            side,
+            joint_names=self.joint_names,
+            parents=self.parents,
+            offsets=self.offsets,
+            end_site_parents=tuple(e.parent for e in self.end_sites),
+            end_site_offsets=tuple(e.offset for e in self.end_sites),
+            names=names,
+            path=self.path,
+        )
+        pos = self.positions()
+        points = np.empty((self.n_frames, 3, 3))
+        points[:, 0] = pos[:, found.indices[0]]
+        points[:, 1] = pos[:, found.indices[1]]
+        if found.wrist_is_end_site:
+            points[:, 2] = self.end_site_positions()[:, found.indices[2]]
+        else:
+            points[:, 2] = pos[:, found.indices[2]]
+        return ArmChain(
+            side=found.side,
+            names=found.names,
+            indices=found.indices,
+            wrist_is_end_site=found.wrist_is_end_site,
+            points=_readonly(points),
+            method=found.method,
+        )
+
+    # ---------------------------------------------------------------------------------- transforms
+    def scaled(self, factor: float) -> Motion:
+        """A copy with every length (OFFSETs, End Sites, position channels) multiplied by ``factor``."""
+        factor = float(factor)
+        if not (np.isfinite(factor) and factor > 0):
+            raise ValueError(f"Expected a positive finite scale factor, got {factor}")
+        channels = self.channels.copy()
+        for lay in self.layout:
+            channels[:, lay.columns("position")] *= factor
+        return Motion(
+            joint_names=self.joint_names,
+            parents=self.parents.copy(),
+            offsets=self.offsets * factor,
+            layout=self.layout,
+            end_sites=tuple(EndSite(e.parent, tuple(v * factor for v in e.offset)) for e in self.end_sites),
+            channels=channels,
+            frame_time=self.frame_time,
+            path=self.path,
+        )

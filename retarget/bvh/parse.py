@@ -1,0 +1,514 @@
+"""Read BVH motion capture files: ``load_bvh(path) -> Motion``.
+
+The parser accepts what real exporters write: any order of rotation channels,
+differing per joint; position channels on any joint (they replace that
+joint's OFFSET); End Sites; LF, CRLF or CR-only line ends; tabs; scientific
+notation; ``Frames: 0``; names with spaces or colons, kept whole; trailing
+whitespace and a missing final newline.
+
+Everything else is a :class:`~retarget.errors.BvhError` naming the file and
+line and saying what was expected and what was found, e.g.
+``clip.bvh:190: Expected 93 values on frame line, got 92``.  The parser never
+loops on a short file and never returns partial data.
+
+Speed: the MOTION block is read in ~100 KB windows of whole lines, each with
+a handful of vectorised passes (token boundaries, per-line counts, the
+numbers themselves: see :mod:`retarget.bvh.numbers`).  Only when something
+is irregular (a wrong count, an exponent, a bad token) is the block read
+again in one piece, to read the unusual numbers with ``float()`` and to report
+the first problem in file order.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import mmap
+import re
+from os import PathLike
+from pathlib import Path
+
+import numpy as np
+
+from retarget.bvh import numbers as bvh_numbers
+from retarget.bvh.motion import ChannelLayout, EndSite, Motion
+from retarget.errors import BvhError
+
+log = logging.getLogger(__name__)
+
+#: The bundled demo clip (written by ``scripts/make_demo_clip.py``): a right arm reaching, waving and pointing.
+DEMO_CLIP: Path = Path(__file__).resolve().parent / "data" / "demo.bvh"
+
+#: Channel names a BVH file may use, in their canonical spelling.
+CHANNEL_NAMES: tuple[str, ...] = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
+_CHANNEL_LOOKUP = {name.lower(): name for name in CHANNEL_NAMES}
+
+_FRAMES_RE = re.compile(r"Frames\s*:\s*(\S*)\s*", re.IGNORECASE)
+_FRAME_TIME_RE = re.compile(r"Frame\s+Time\s*:\s*(\S*)\s*", re.IGNORECASE)
+_NUMBER = rb"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
+_NUMBER_RE = re.compile(_NUMBER)
+_NUMBERS_RE = re.compile(rb"(?:%s\n)*%s" % (_NUMBER, _NUMBER))  # newline-separated
+_NONFINITE_RE = re.compile(rb"[+-]?(?:nan|inf|infinity)(?:\(\w*\))?", re.IGNORECASE)
+
+
+def load_bvh(path: str | PathLike[str]) -> Motion:
+    """Read the BVH file at ``path``.
+
+    Raises :class:`~retarget.errors.BvhError` for a file that is not valid BVH
+    and ``OSError`` for one that cannot be read.
+    """
+    p = Path(path)
+    with open(p, "rb") as f:
+        try:  # map the file: its pages come from the page cache, not a fresh copy
+            text = np.frombuffer(mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ), dtype=np.uint8)
+        except (OSError, ValueError):  # empty, or not mappable (a pipe, /proc): read it
+            text = np.frombuffer(f.read(), dtype=np.uint8)
+    return _parse(text, path=p)
+
+
+def parse_bvh(text: str | bytes, *, path: str | PathLike[str] | None = None) -> Motion:
+    """Read BVH from a string (or bytes); ``path`` only names the source in errors and ``Motion.path``."""
+    data = text.encode("utf-8") if isinstance(text, str) else bytes(text)
+    return _parse(np.frombuffer(data, dtype=np.uint8), path=None if path is None else Path(path))
+
+
+# --------------------------------------------------------------------------------------------- whole file
+
+_CONTROL_BYTES = bytes([*range(1, 9), *range(14, 32)])
+_MAX_DEPTH = 500  # nested joints; real skeletons stay under 100
+_HEAD = 1 << 16  # bytes tried first for the header
+
+
+def _parse(text: np.ndarray, *, path: Path | None) -> Motion:
+    """Parse the file's bytes ``text`` (uint8, may be read-only)."""
+    if bytes(text[:3]) == b"\xef\xbb\xbf":
+        text = text[3:]  # a UTF-8 byte order mark (on line 1: line numbers are unchanged)
+    size = text.size
+    head = bytes(text[:_HEAD])
+    if not head.strip() and not (text > 32).any():
+        raise BvhError("Expected a BVH file starting with HIERARCHY, got an empty file", path=path, line=1)
+    _reject_binary(text, head, path)
+    if b"\r" in head:  # CR or CRLF line ends (a CR first met later is caught by _read_frames)
+        return _parse_normalised(text, path)
+    header = _Header(head, path)
+    try:
+        header.parse()
+        complete = header.pos <= len(head) or len(head) == size
+    except BvhError:
+        if len(head) == size:
+            raise
+        complete = False
+    if not complete:  # a header longer than the first bytes tried
+        header = _Header(bytes(text), path)
+        header.parse()
+    try:
+        channels = _read_frames(text, header.data_start, size - header.data_start, header, path)
+    except _CarriageReturns:
+        return _parse_normalised(text, path)
+    return Motion(
+        joint_names=tuple(j.name for j in header.joints),
+        parents=np.array([j.parent for j in header.joints], dtype=np.intp),
+        offsets=np.array([j.offset for j in header.joints], dtype=np.float64).reshape(-1, 3),
+        layout=tuple(ChannelLayout(j.channel_names, j.first_column) for j in header.joints),
+        end_sites=tuple(EndSite(parent=e[0], offset=e[1]) for e in header.end_sites),
+        channels=channels,
+        frame_time=header.frame_time,
+        path=path,
+    )
+
+
+class _CarriageReturns(Exception):
+    """The frames hold a CR the header did not: read the file again with its line ends normalised."""
+
+
+def _parse_normalised(text: np.ndarray, path: Path | None) -> Motion:
+    data = bytes(text).replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+    return parse_bvh(data, path=path)
+
+
+def _reject_binary(text: np.ndarray, head: bytes, path: Path | None) -> None:
+    """A NUL byte anywhere, or many control characters at the start, mean this is not a text file."""
+    start = head[:4096]
+    control = len(start) - len(start.translate(None, _CONTROL_BYTES))
+    has_nul = text.size > 0 and int(text.min()) == 0  # a reduction: no 1-byte-per-byte temporary
+    if has_nul or control > len(start) // 20:
+        where = int(np.argmin(text)) if has_nul else 0
+        line = int(np.count_nonzero(text[:where] == 10)) + 1
+        raise BvhError("Expected a text BVH file, got binary data", path=path, line=line)
+
+
+class _Joint:
+    __slots__ = ("name", "parent", "offset", "channel_names", "first_column", "line")
+
+    def __init__(self, name: str, parent: int, line: int):
+        self.name = name
+        self.parent = parent
+        self.offset: tuple[float, float, float] | None = None
+        self.channel_names: tuple[str, ...] | None = None
+        self.first_column = 0
+        self.line = line
+
+
+class _Header:
+    """Recursive-descent reader of HIERARCHY and the two MOTION header lines, one logical line at a time."""
+
+    def __init__(self, data: bytes, path: Path | None):
+        self.data = data
+        self.path = path
+        self.pos = 0  # byte offset of the next unread line
+        self.line = 0  # number of the last line read
+        self.joints: list[_Joint] = []
+        self.end_sites: list[tuple[int, tuple[float, float, float]]] = []
+        self.n_channels = 0
+        self.n_frames = 0
+        self.frame_time = 0.0
+        self.data_start = len(data)  # byte offset of the first frame line
+        self.data_first_line = 1
+
+    # -- lines
+    def _error(self, message: str, line: int | None = None) -> BvhError:
+        return BvhError(message, path=self.path, line=self.line if line is None else line)
+
+    def _next_line(self) -> str | None:
+        """The next non-blank line, stripped; None at the end of the file."""
+        data = self.data
+        while self.pos < len(data):
+            end = data.find(b"\n", self.pos)
+            if end < 0:
+                end = len(data)
+            raw = data[self.pos : end]
+            self.pos = end + 1
+            self.line += 1
+            text = raw.strip()
+            if text:
+                try:
+                    return text.decode("utf-8")
+                except UnicodeDecodeError:
+                    return text.decode("latin-1")
+        return None
+
+    def _expect_line(self, what: str) -> str:
+        text = self._next_line()
+        if text is None:
+            self.line += 1
+            raise self._error(f"Expected {what}, got end of file")
+        return text
+
+    # -- grammar
+    def parse(self) -> None:
+        first = self._expect_line("HIERARCHY")
+        if first.split()[0].upper() != "HIERARCHY":
+            raise self._error(f"Expected HIERARCHY, got {_show(first)}")
+        if first.split()[1:]:
+            raise self._error(f"Expected HIERARCHY alone on its line, got {_show(first)}")
+        text = self._expect_line("ROOT")
+        if _keyword(text) != "ROOT":
+            raise self._error(f"Expected ROOT after HIERARCHY, got {_show(text)}")
+        while True:
+            self._joint(text, parent=-1, keyword="ROOT")
+            text = self._expect_line("MOTION after the hierarchy")
+            kw = _keyword(text)
+            if kw == "MOTION":
+                break
+            if text.startswith("}"):
+                raise self._error("Expected MOTION after the hierarchy, got an extra '}' (unbalanced braces)")
+            if kw != "ROOT":
+                raise self._error(f"Expected MOTION after the hierarchy, got {_show(text)}")
+        if text.split()[1:]:
+            raise self._error(f"Expected MOTION alone on its line, got {_show(text)}")
+        self._motion_header()
+
+    def _joint(self, text: str, *, parent: int, keyword: str, depth: int = 0) -> None:
+        opened_line = self.line
+        if depth >= _MAX_DEPTH:
+            raise self._error(f"Expected at most {_MAX_DEPTH} nested joints, got more")
+        name, brace = _name_and_brace(text, keyword)
+        if not name:
+            raise self._error(f"Expected a joint name after {keyword}, got nothing")
+        joint = _Joint(name, parent, opened_line)
+        index = len(self.joints)
+        self.joints.append(joint)
+        if not brace:
+            self._open_brace(f"{keyword} {name!r}")
+        while True:
+            text = self._expect_line(f"'}}' to close {keyword} {name!r} (opened at line {opened_line})")
+            kw = _keyword(text)
+            if kw == "OFFSET":
+                if joint.offset is not None:
+                    raise self._error(f"Expected one OFFSET in {keyword} {name!r}, got a second one")
+                joint.offset = self._offset(text)
+            elif kw == "CHANNELS":
+                if joint.channel_names is not None:
+                    raise self._error(f"Expected one CHANNELS line in {keyword} {name!r}, got a second one")
+                joint.channel_names = self._channels(text)
+                joint.first_column = self.n_channels
+                self.n_channels += len(joint.channel_names)
+            elif kw == "JOINT":
+                self._require_header(joint, keyword)
+                self._joint(text, parent=index, keyword="JOINT", depth=depth + 1)
+            elif kw == "END":
+                self._require_header(joint, keyword)
+                self._end_site(text, parent=index)
+            elif text == "}":
+                self._require_header(joint, keyword)
+                return
+            elif kw in ("MOTION", "ROOT"):
+                raise self._error(
+                    f"Expected '}}' to close {keyword} {name!r} (opened at line {opened_line}), got {_show(text)}"
+                )
+            elif text.startswith("}"):
+                raise self._error(f"Expected '}}' alone on its line, got {_show(text)}")
+            else:
+                raise self._error(
+                    f"Expected OFFSET, CHANNELS, JOINT, End Site or '}}' in {keyword} {name!r}, got {_show(text)}"
+                )
+
+    def _require_header(self, joint: _Joint, keyword: str) -> None:
+        if joint.offset is None:
+            raise self._error(f"Expected OFFSET in {keyword} {joint.name!r} (line {joint.line}) before its children")
+        if joint.channel_names is None:
+            raise self._error(f"Expected CHANNELS in {keyword} {joint.name!r} (line {joint.line}) before its children")
+
+    def _open_brace(self, what: str) -> None:
+        text = self._expect_line(f"'{{' after {what}")
+        if text != "{":
+            raise self._error(f"Expected '{{' after {what}, got {_show(text)}")
+
+    def _end_site(self, text: str, *, parent: int) -> None:
+        opened_line = self.line
+        words = text.split()
+        if len(words) < 2 or words[1].lower() != "site" or words[2:] not in ([], ["{"]):
+            raise self._error(f"Expected 'End Site', got {_show(text)}")
+        if words[2:] != ["{"]:
+            self._open_brace("End Site")
+        offset = None
+        while True:
+            text = self._expect_line(f"'}}' to close the End Site (opened at line {opened_line})")
+            kw = _keyword(text)
+            if kw == "OFFSET" and offset is None:
+                offset = self._offset(text)
+            elif text == "}":
+                if offset is None:
+                    raise self._error("Expected OFFSET in the End Site before '}'")
+                self.end_sites.append((parent, offset))
+                return
+            else:
+                raise self._error(f"Expected OFFSET or '}}' in the End Site, got {_show(text)}")
+
+    def _offset(self, text: str) -> tuple[float, float, float]:
+        words = text.split()[1:]
+        if len(words) != 3:
+            raise self._error(f"Expected 3 numbers after OFFSET, got {len(words)}")
+        values = tuple(self._number(w, "OFFSET") for w in words)
+        return values  # type: ignore[return-value]
+
+    def _number(self, word: str, where: str) -> float:
+        if not _NUMBER_RE.fullmatch(word.encode("utf-8", "replace")):
+            raise self._error(f"Expected a number in {where}, got {word!r}")
+        value = float(word)
+        if not math.isfinite(value):
+            raise self._error(f"Expected a finite number in {where}, got {word!r}")
+        return value
+
+    def _channels(self, text: str) -> tuple[str, ...]:
+        words = text.split()[1:]
+        if not words or not words[0].isdigit():
+            raise self._error(f"Expected a channel count after CHANNELS, got {_show(' '.join(words[:1]) or '')}")
+        count = int(words[0])
+        names = words[1:]
+        if len(names) != count:
+            raise self._error(f"Expected {count} channel names after 'CHANNELS {count}', got {len(names)}")
+        canonical = []
+        for name in names:
+            channel = _CHANNEL_LOOKUP.get(name.lower())
+            if channel is None:
+                raise self._error(f"Expected a channel name ({', '.join(CHANNEL_NAMES)}), got {name!r}")
+            if channel.endswith("position") and channel in canonical:
+                raise self._error(f"Expected each position channel once, got {channel} twice")
+            canonical.append(channel)
+        return tuple(canonical)
+
+    def _motion_header(self) -> None:
+        text = self._expect_line("'Frames: <count>' after MOTION")
+        m = _FRAMES_RE.fullmatch(text)
+        if not m:
+            raise self._error(f"Expected 'Frames: <count>' after MOTION, got {_show(text)}")
+        if not m.group(1).isdigit():
+            raise self._error(f"Expected a whole number of frames, got {m.group(1)!r}")
+        self.n_frames = int(m.group(1))
+        text = self._expect_line("'Frame Time: <seconds>' after Frames")
+        m = _FRAME_TIME_RE.fullmatch(text)
+        if not m:
+            raise self._error(f"Expected 'Frame Time: <seconds>' after Frames, got {_show(text)}")
+        word = m.group(1)
+        try:
+            frame_time = float(word) if _NUMBER_RE.fullmatch(word.encode("utf-8", "replace")) else math.nan
+        except ValueError:
+            frame_time = math.nan
+        if not (math.isfinite(frame_time) and frame_time > 0):
+            raise self._error(f"Expected a positive frame time in seconds, got {word!r}")
+        self.frame_time = frame_time
+        self.data_start = min(self.pos, len(self.data))
+        self.data_first_line = self.line + 1
+        if self.n_channels == 0:
+            raise self._error("Expected at least one channel in the hierarchy, got none", line=2)
+
+
+def _keyword(text: str) -> str:
+    return text.split(None, 1)[0].upper()
+
+
+def _name_and_brace(text: str, keyword: str) -> tuple[str, bool]:
+    """The joint name after ROOT/JOINT (the rest of the line, kept whole) and whether a '{' ends the line."""
+    rest = text[len(keyword) :].strip() if text[: len(keyword)].upper() == keyword else ""
+    brace = False
+    if rest.endswith("{") and (rest == "{" or rest[-2].isspace()):
+        rest, brace = rest[:-1].rstrip(), True
+    return rest, brace
+
+
+def _show(text: str, limit: int = 60) -> str:
+    return repr(text if len(text) <= limit else text[:limit] + "...")
+
+
+# ----------------------------------------------------------------------------------------------- MOTION
+
+
+#: Bytes of MOTION block read per step: the temporaries of a step stay below glibc's mmap threshold, so they are
+#: recycled instead of page-faulted in afresh (which costs more than the arithmetic on this kind of machine).
+_WINDOW = 96 * 1024
+
+
+def _read_frames(buf: np.ndarray, base: int, length: int, header: _Header, path: Path | None) -> np.ndarray:
+    """``(n_frames, n_channels)`` float64 from the frame lines in ``buf[base : base + length]``; every count and
+    value checked.  The common case (all counts right, all numbers plain decimals) is read window by window;
+    anything else is read again in one piece to find and report the first problem."""
+    channels = _read_frames_fast(buf, base, length, header.n_frames, header.n_channels)
+    if channels is not None:
+        return channels
+    if int(np.count_nonzero(buf[base : base + length] == 13)):
+        raise _CarriageReturns
+    return _read_frames_checked(buf, base, length, header, path)
+
+
+def _read_frames_fast(buf: np.ndarray, base: int, length: int, n_frames: int, n_channels: int) -> np.ndarray | None:
+    """The frames if every line and number is regular, else None (nothing is reported from here)."""
+    if n_frames * n_channels > (length + 1) // 2:  # each value takes 2 bytes at least: the file ends early
+        return None
+    values = np.empty(n_frames * n_channels)
+    b = buf[base : base + length]
+    filled = lines = 0
+    lo = 0
+    while lo < length:
+        hi = min(lo + _WINDOW, length)
+        window = b[lo:hi]
+        breaks = np.flatnonzero(window == 10)
+        if hi < length:
+            if breaks.size == 0:
+                return None  # a line longer than a window: let the checked path deal with it
+            hi = lo + int(breaks[-1]) + 1
+            window = b[lo:hi]
+        starts, ends = bvh_numbers.token_bounds(window)
+        first_token = np.searchsorted(starts, np.concatenate(([0], breaks[breaks < hi - lo] + 1)))
+        counts = np.diff(np.append(first_token, starts.size))
+        counts = counts[counts > 0]
+        k = starts.size
+        if (counts != n_channels).any() or filled + k > values.size:
+            return None
+        if k:
+            _, slow = _parse_tokens(buf, base + lo, starts, ends, out=values[filled : filled + k])
+            if slow.any():
+                return None
+        filled += k
+        lines += counts.size
+        lo = hi
+    if lines != n_frames or filled != values.size:  # (fast-path values are plain decimals: always finite)
+        return None
+    return values.reshape(n_frames, n_channels)
+
+
+def _read_frames_checked(buf: np.ndarray, base: int, length: int, header: _Header, path: Path | None) -> np.ndarray:
+    """Like :func:`_read_frames`, in one piece, reporting the first problem in file order."""
+    n_frames, n_channels, first_line = header.n_frames, header.n_channels, header.data_first_line
+    b = buf[base : base + length]
+    starts, ends = bvh_numbers.token_bounds(b)
+    breaks = np.flatnonzero(b == 10)  # line i of the block ends at breaks[i]
+    line_starts = np.concatenate(([0], breaks + 1))
+    first_token = np.searchsorted(starts, line_starts)
+    counts = np.diff(np.append(first_token, starts.size))
+    filled = np.flatnonzero(counts)  # block line index of each non-blank line
+
+    def line_of(token: int) -> int:
+        return first_line + int(np.searchsorted(breaks, starts[token]))
+
+    problem: tuple[int, str] | None = None  # (file line, message): the first in file order wins
+    wrong = np.flatnonzero(counts[filled[:n_frames]] != n_channels)
+    if wrong.size:
+        k = filled[wrong[0]]
+        problem = (first_line + int(k), f"Expected {n_channels} values on frame line, got {int(counts[k])}")
+    if filled.size > n_frames:
+        k = filled[n_frames]
+        extra = (
+            first_line + int(k),
+            f"Expected {n_frames} frame lines (Frames: {n_frames}), got more: extra data after the last frame",
+        )
+        problem = extra if problem is None or extra[0] < problem[0] else problem
+
+    if starts.size:
+        values, slow = _parse_tokens(buf, base, starts, ends)
+    else:
+        values, slow = np.zeros(0), np.zeros(0, dtype=bool)
+    bad_value = _read_slow_tokens(b, starts, ends, values, slow)
+    if bad_value is not None:
+        token, message = bad_value
+        candidate = (line_of(token), message)
+        if problem is None or candidate[0] < problem[0]:
+            problem = candidate
+    if problem is None and not np.isfinite(values).all():
+        token = int(np.flatnonzero(~np.isfinite(values))[0])
+        problem = (line_of(token), f"Expected a finite number, got {bytes(b[starts[token] : ends[token]]).decode()!r}")
+    if problem is not None:
+        raise BvhError(problem[1], path=path, line=problem[0])
+    if filled.size < n_frames:
+        n_lines = breaks.size + (1 if length and b[-1] != 10 else 0)
+        raise BvhError(
+            f"Expected {n_frames} frame lines (Frames: {n_frames}), got {filled.size}: the file ends early",
+            path=path,
+            line=first_line + n_lines,
+        )
+    return values.reshape(n_frames, n_channels)
+
+
+def _parse_tokens(
+    text: np.ndarray, base: int, starts: np.ndarray, ends: np.ndarray, *, out: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`bvh_numbers.parse_tokens` on ``text[base:]``, through a padded copy when the tokens run to the end."""
+    stop = base + int(ends[-1])
+    if base >= 8 and stop + bvh_numbers.PAD <= text.size:
+        return bvh_numbers.parse_tokens(text, base, starts, ends, out=out)
+    padded = np.full(stop - base + 8 + bvh_numbers.PAD, 32, dtype=np.uint8)
+    padded[8 : 8 + stop - base] = text[base:stop]
+    return bvh_numbers.parse_tokens(padded, 8, starts, ends, out=out)
+
+
+def _read_slow_tokens(block, starts, ends, values, slow) -> tuple[int, str] | None:
+    """Read the tokens the fast path flagged; return the first bad one as (token index, message).
+
+    Valid ones (exponents, long numbers) are checked with one regex over all
+    of them and converted in bulk; only a failure is looked at token by token.
+    """
+    index = np.flatnonzero(slow)
+    if index.size == 0:
+        return None
+    words = [bytes(block[s:e]) for s, e in zip(starts[index].tolist(), ends[index].tolist(), strict=True)]
+    if _NUMBERS_RE.fullmatch(b"\n".join(words)):
+        values[index] = np.array(words).astype(np.float64)
+        return None
+    for i, word in zip(index.tolist(), words, strict=True):
+        if _NUMBER_RE.fullmatch(word):
+            continue
+        shown = word.decode("utf-8", "replace")
+        if _NONFINITE_RE.fullmatch(word):
+            return i, f"Expected a finite number, got {shown!r}"
+        return i, f"Expected a number, got {shown!r}"
+    raise AssertionError("unreachable: the joined tokens failed the regex but each one passed")

@@ -1,0 +1,306 @@
+"""Clip replay: :class:`ControlLoop` plays retargeted motion on a bus (or dry) at a fixed rate.
+
+It runs the tick loop of :mod:`retarget.control.loop` (target, IK, velocity limit, one write, read-back; the
+read-back pipelined with the next tick's compute on a bus) on a :class:`ClipSource`.  Tick ``k`` plays clip
+time ``start + k * speed / rate``, wrapped into ``[start, end)`` with ``loop``; the clip's frames are
+resampled to ticks by linear interpolation and pulled into the workspace, a block of slots at a time.
+
+**Lead-in.**  On a bus, :meth:`ControlLoop.run` first moves the arm from its
+present pose to the clip's first pose (:meth:`ControlLoop.initial_pose`, the IK
+solution of the first target) along a straight line in joint space with a
+raised-cosine time profile (at rest at both ends, synchronised so all joints
+arrive together), at a peak speed of ``lead_in_speed`` rad/s per joint (capped
+by ``velocity_scale x max_velocity``); after an overrun too, each lead-in tick
+steps at most that speed's one slot (:attr:`JointGoal.max_step`): the arm lags
+the plan and catches up as it slows down, never faster.  Its ticks are slots ``-n .. -1`` of the
+same tick loop, before the clip's clock starts (their ``time`` is negative,
+``TickRecord.lead_in`` is set, ``clip_time`` is the clip's start), so the clip
+still starts at slot 0 with the same bus calls, limits and velocity limiting.
+Its ticks are counted apart: the summary's ticks, IK stats, tick times,
+overruns and real-time factor are the clip's; ``lead_in_ticks`` and
+``lead_in_s`` report the lead-in; ``max_ticks`` counts clip ticks.  A dry run
+has no lead-in (no arm to move): start it from ``initial_pose()`` to get the
+trajectory the clip part of a bus run commands.
+
+Ctrl-C: :meth:`ControlLoop.stop` (signal-safe) ends the run at the next tick
+boundary, and a ``KeyboardInterrupt`` raised inside a tick (e.g. by a
+telemetry callback) ends it too; either way the summary says ``interrupted``.
+:func:`run_on_bus` connects the bus and always closes it, so the bus's own
+shutdown sequence (hold, rest or torque off) runs.
+
+The tick loop's names (:class:`LoopConfig`, :class:`TickRecord`, :func:`run_ticks`, ...) are importable
+from here too.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from retarget.control.bus import connected
+from retarget.control.clock import Clock, MonotonicClock
+from retarget.control.loop import JointGoal, LoopConfig, TargetSource, TickRecord, TickStats, run_ticks
+from retarget.control.summary import RunSummary
+from retarget.errors import ConfigError
+
+if TYPE_CHECKING:
+    from retarget.arm.model import Arm
+    from retarget.control.bus import Bus
+    from retarget.ik.ccd import CCDSolver
+    from retarget.mapping.geometry import Targets
+
+__all__ = [
+    "ClipSource",
+    "ControlLoop",
+    "JointGoal",
+    "LeadIn",
+    "LoopConfig",
+    "TargetSource",
+    "TickRecord",
+    "TickStats",
+    "run_on_bus",
+    "run_ticks",
+]
+
+log = logging.getLogger(__name__)
+
+_BLOCK = 256  #: targets are resampled this many slots at a time
+
+
+class ControlLoop:
+    """Plays :class:`~retarget.mapping.Targets` on an arm at a fixed rate.  See the module docstring.
+
+    ``solver`` defaults to a :class:`~retarget.ik.CCDSolver` with the config's
+    budget (and the mapping's orientation weight when the targets carry
+    rotations).  ``on_tick(record)`` is called after every tick;
+    ``on_progress(record)`` on the first tick, then about once per
+    ``progress_every`` real seconds (so ``--fast`` runs do not flood the terminal), as read from
+    ``progress_time()`` (default ``time.perf_counter``; a test passes a fake one to check the pacing).
+    ``pipeline``: overlap each tick's read-back with the next tick's compute on a bus (see the module
+    docstring); False reads back within the tick.
+    """
+
+    def __init__(
+        self,
+        arm: Arm,
+        targets: Targets,
+        *,
+        config: LoopConfig | None = None,
+        clock: Clock | None = None,
+        solver: CCDSolver | None = None,
+        on_tick: Callable[[TickRecord], None] | None = None,
+        on_progress: Callable[[TickRecord], None] | None = None,
+        clip_name: str = "",
+        progress_time: Callable[[], float] | None = None,
+        pipeline: bool = True,
+    ):
+        self.arm = arm
+        self.pipeline = pipeline
+        self.targets = targets
+        self.config = config = config or LoopConfig()
+        self.clock: Clock = clock if clock is not None else MonotonicClock()
+        from retarget.ik.ccd import CCDSolver
+        from retarget.mapping.geometry import ik_weights
+
+        self._solver_kwargs = {"tolerance": config.ik_tolerance, "weights": ik_weights(arm, targets.config)}
+        if targets.rotations is not None:
+            self._solver_kwargs["orientation_weight"] = targets.config.orientation_weight
+        if solver is None:
+            solver = CCDSolver(arm, max_iterations=config.ik_iterations, **self._solver_kwargs)
+        self.solver = solver
+        self.on_tick = on_tick
+        self.on_progress = on_progress
+        self.progress_time = progress_time
+        self.clip_name = clip_name
+        self._stop = threading.Event()
+
+        clip_duration = (targets.n_frames - 1) * targets.frame_time
+        end = clip_duration if config.end is None else min(config.end, clip_duration)
+        if config.start >= end and targets.n_frames > 1:
+            raise ConfigError(
+                f"Expected a start time before the clip's end ({end:g} s)", key="--start", value=config.start
+            )
+        self.window = (float(config.start), float(end))
+        self.step = step = config.speed / config.rate  #: clip seconds per tick
+        span = end - config.start
+        if config.loop:
+            n = max(1, round(span / step))
+        else:
+            n = int(math.floor(span / step + 1e-9)) + 1
+        #: slots of one pass over the window (a looping run wraps slot ``k`` to ``k % n_slots``)
+        self.n_slots = n
+        self.frames = int(round(span / targets.frame_time)) + 1
+
+    def clip_time(self, i: int) -> float:
+        """Clip seconds of slot ``i`` of a pass (``0 <= i < n_slots``)."""
+        return self.config.start + i * self.step
+
+    def sample(self, first: int, stop: int) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+        """Targets of slots ``first..stop-1`` of a pass: positions ``(n, 3)`` m, rotations or None, clamped ``(n,)``."""
+        return self.targets.sample(self.config.start + np.arange(first, stop) * self.step)
+
+    @property
+    def n_ticks(self) -> int | None:
+        """The most ticks the run will take (None: a loop without ``max_ticks`` runs until stopped)."""
+        n = None if self.config.loop else self.n_slots
+        if self.config.max_ticks is not None:
+            n = self.config.max_ticks if n is None else min(n, self.config.max_ticks)
+        return n
+
+    def stop(self) -> None:
+        """Ask the run to end at the next tick boundary (safe from a signal handler or another thread)."""
+        self._stop.set()
+
+    def initial_pose(self, *, iterations: int = 200) -> np.ndarray:
+        """The IK solution of the first target, solved cold from home with a large budget: ``(n_joints,)`` rad."""
+        from retarget.ik.ccd import CCDSolver
+
+        solver = CCDSolver(self.arm, max_iterations=iterations, **self._solver_kwargs)
+        positions, rotations, _ = self.sample(0, 1)
+        rotation = None if rotations is None else rotations[0]
+        return np.array(solver.solve(positions[0], self.arm.home, rotation).q, dtype=np.float64)
+
+    def run(
+        self, bus: Bus | None = None, *, q_start: np.ndarray | None = None, lead_in: bool | None = None
+    ) -> RunSummary:
+        """Run the loop on a connected ``bus`` (``None``: dry run) and return the summary.
+
+        The start pose is the bus's present positions, else ``q_start``, else the
+        arm's rest pose.  ``lead_in``: first move from the start pose to
+        :meth:`initial_pose` (see the module docstring; nothing when
+        ``config.lead_in_speed`` is 0); default on a bus only, True previews it in
+        a dry run.  ``BusError`` propagates (the caller closes the bus).
+        """
+        if lead_in is None:
+            lead_in = bus is not None
+        lead_to = self.initial_pose() if lead_in and self.config.lead_in_speed > 0 else None
+        source = ClipSource(self, lead_in_to=lead_to)
+        ticks = run_ticks(
+            self.arm,
+            source,
+            self.solver,
+            config=self.config,
+            clock=self.clock,
+            bus=bus,
+            q_start=q_start,
+            on_tick=self.on_tick,
+            on_progress=self.on_progress,
+            progress_time=self.progress_time,
+            stop=self._stop,
+            pipeline=self.pipeline,
+        )
+        played = (ticks.last_slot + 1) * self.config.speed / self.config.rate if ticks.last_slot >= 0 else 0.0
+        return ticks.summary(arm=self.arm.name, clip=self.clip_name, frames=self.frames, duration_s=played)
+
+
+@dataclass(frozen=True)
+class LeadIn:
+    """A joint-space move from ``q_from`` to ``q_to`` ``(n_joints,)`` rad over slots ``-n_slots .. -1``.
+
+    Straight in joint space with a raised-cosine time profile: at slot ``-n_slots - 1 + i`` the pose is
+    ``q_from + s_i (q_to - q_from)``, ``s_i = (1 - cos(pi i / n)) / 2``, so it starts and ends at rest, every
+    joint arrives together at slot -1, and joint ``j``'s largest step, ``|dq_j| sin(pi / 2n)``, stays within
+    ``speed_j / rate``.  No slots when a single step is already within that speed.
+    """
+
+    q_from: np.ndarray
+    q_to: np.ndarray
+    target: np.ndarray  #: ``(3,)`` metres: the target whose solution ``q_to`` is, reported by the lead-in ticks
+    n_slots: int
+    #: rad per joint, ``speed / rate``: each goal's step limit in the loop, so a tick after an overrun moves on at
+    #: the lead-in's speed (and the lead-in catches up on its slower end) instead of jumping to the planned pose
+    max_step: tuple[float, ...] | None = None
+
+    @classmethod
+    def plan(
+        cls, q_from: np.ndarray, q_to: np.ndarray, *, speed: np.ndarray, rate: float, target: np.ndarray
+    ) -> LeadIn:
+        """The lead-in at peak joint speeds ``speed`` ``(n_joints,)`` rad/s (> 0) and ``rate`` ticks per second."""
+        q_from = np.asarray(q_from, dtype=np.float64)
+        q_to = np.asarray(q_to, dtype=np.float64)
+        ratio = float(np.max(np.abs(q_to - q_from) / speed)) * rate  # slots the move takes at constant speed
+        n = 0 if ratio <= 1.0 else math.ceil(math.pi / (2.0 * math.asin(1.0 / ratio)))
+        # a hair above speed / rate: the plan's own steps (<= speed / rate up to rounding) pass unchanged
+        max_step = tuple((np.broadcast_to(speed, q_from.shape) / rate * (1.0 + 1e-9)).tolist())
+        return cls(q_from=q_from, q_to=q_to, target=np.asarray(target, dtype=np.float64), n_slots=n, max_step=max_step)
+
+    def goal(self, slot: int) -> JointGoal:
+        """The goal of lead-in slot ``slot`` (``-n_slots <= slot < 0``)."""
+        i = slot + self.n_slots + 1
+        if i >= self.n_slots:
+            return JointGoal(self.q_to, self.target, self.max_step)
+        s = 0.5 - 0.5 * math.cos(math.pi * i / self.n_slots)
+        return JointGoal(self.q_from + s * (self.q_to - self.q_from), self.target, self.max_step)
+
+
+class ClipSource:
+    """The :class:`TargetSource` of a :class:`ControlLoop`: its clip window, sampled a block of slots at a time.
+
+    With ``lead_in_to`` (a pose ``(n_joints,)`` rad, normally :meth:`ControlLoop.initial_pose`), ``start``
+    plans a :class:`LeadIn` from the start pose to it at the config's ``lead_in_speed`` and the clip starts
+    after it, at slot 0.
+    """
+
+    def __init__(self, loop: ControlLoop, *, lead_in_to: np.ndarray | None = None):
+        self.loop = loop
+        self.n_slots = loop.n_slots
+        self.looping = loop.config.loop
+        self.lead_in_to = lead_in_to
+        self.lead_in: LeadIn | None = None  #: planned by ``start``
+        self._block0 = self._block1 = 0  # the slots [block0, block1) of a pass whose targets are sampled
+        self._positions = self._clamped = np.empty(0)
+        self._rotations: np.ndarray | None = None
+
+    def start(self, q_start: np.ndarray) -> int:
+        """Plan the lead-in from ``q_start`` (if any); returns the first slot, ``-n`` for ``n`` lead-in slots."""
+        if self.lead_in_to is None:
+            return 0
+        loop, cfg = self.loop, self.loop.config
+        speed = np.minimum(cfg.lead_in_speed, cfg.velocity_scale * loop.arm.max_velocity)
+        positions, _, _ = loop.sample(0, 1)
+        self.lead_in = LeadIn.plan(q_start, self.lead_in_to, speed=speed, rate=cfg.rate, target=positions[0])
+        if self.lead_in.n_slots:
+            log.info(
+                "lead-in: %d ticks (%.2f s) to the clip's first pose at <= %.3g rad/s",
+                self.lead_in.n_slots,
+                self.lead_in.n_slots / cfg.rate,
+                cfg.lead_in_speed,
+            )
+        return -self.lead_in.n_slots
+
+    def finished(self, tick: int) -> bool:
+        return not self.looping and tick >= self.n_slots
+
+    def clip_time(self, tick: int) -> float:
+        if tick < 0:  # the lead-in: the clip waits at its start
+            return self.loop.config.start
+        return self.loop.clip_time(tick % self.n_slots if self.looping else tick)
+
+    def target_at(self, tick: int, t: float) -> tuple[np.ndarray, np.ndarray | None, bool] | JointGoal:
+        if tick < 0:
+            return self.lead_in.goal(tick)  # type: ignore[union-attr]
+        i = tick % self.n_slots if self.looping else tick
+        if not self._block0 <= i < self._block1:  # sample the targets of the next slots, a block at a time
+            if i == self._block1 or self._rotations is not None:
+                self._block0, self._block1 = i, min(i + _BLOCK, self.n_slots)
+                self._positions, self._rotations, self._clamped = self.loop.sample(self._block0, self._block1)
+            else:  # after a skip only this slot (an overrunning loop skips every tick)
+                one, moved = self.loop.targets.at(self.loop.clip_time(i))
+                self._block0, self._block1 = i, i + 1
+                self._positions, self._clamped = one[None], (moved,)
+                return one, None, moved
+        j = i - self._block0
+        rotations = self._rotations
+        return self._positions[j], None if rotations is None else rotations[j], bool(self._clamped[j])
+
+
+def run_on_bus(loop: ControlLoop, bus: Bus) -> RunSummary:
+    """Connect ``bus``, run ``loop`` on it and always close it (its shutdown sequence runs even on Ctrl-C)."""
+    with connected(bus):
+        return loop.run(bus)

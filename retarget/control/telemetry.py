@@ -1,0 +1,117 @@
+"""Per-tick telemetry as CSV, one row per control tick, flushed as it goes (a crash loses nothing).
+
+Columns (units in the names; angles radians, lengths metres or millimetres,
+times seconds or milliseconds; flags 0/1)::
+
+    time_s, clip_time_s, tick, target_x_m, target_y_m, target_z_m,
+    <joint>_cmd_rad ...,  <joint>_present_rad ...,
+    ik_error_mm, ik_sweeps, ik_converged, tick_ms, compute_ms, bus_ms,
+    clamped, velocity_limited, overrun, bus_retries, lead_in
+
+``<joint>_present_rad`` is empty in a dry run (no bus, nothing was read).  ``lead_in`` is 1 on
+the rows of the lead-in to the clip's first pose that a replay on a bus runs before the clip
+(their ``time_s`` and ``tick`` are negative, ``clip_time_s`` is the clip's start, no IK ran:
+``ik_sweeps`` 0, and the target is the clip's first).
+
+    with TelemetryWriter("run.csv", arm.joint_names) as telemetry:
+        ControlLoop(arm, targets, on_tick=telemetry).run(bus)
+"""
+
+from __future__ import annotations
+
+import io
+import os
+from collections.abc import Sequence
+from typing import IO, TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from retarget.control.loop import TickRecord
+
+__all__ = ["TelemetryWriter", "telemetry_columns"]
+
+FLAG_COLUMNS = ("clamped", "velocity_limited", "overrun", "bus_retries", "lead_in")
+
+
+def telemetry_columns(joint_names: Sequence[str]) -> list[str]:
+    """The header of a telemetry CSV for an arm with these joints."""
+    return [
+        "time_s",
+        "clip_time_s",
+        "tick",
+        "target_x_m",
+        "target_y_m",
+        "target_z_m",
+        *(f"{name}_cmd_rad" for name in joint_names),
+        *(f"{name}_present_rad" for name in joint_names),
+        "ik_error_mm",
+        "ik_sweeps",
+        "ik_converged",
+        "tick_ms",
+        "compute_ms",
+        "bus_ms",
+        *FLAG_COLUMNS,
+    ]
+
+
+class TelemetryWriter:
+    """Writes :class:`~retarget.tick_loop.TickRecord` rows to ``target`` (a path, or an open text stream).
+
+    A context manager; callable, so it can be passed as ``on_tick``.  A path is
+    opened (truncated) on ``__enter__``/``open()``; a stream is left open on close.
+    """
+
+    def __init__(self, target: str | os.PathLike[str] | IO[str], joint_names: Sequence[str]):
+        self.target = target
+        self.joint_names = tuple(joint_names)
+        self.columns = telemetry_columns(self.joint_names)
+        self.rows = 0
+        self._file: IO[str] | None = None
+        self._owns = False
+        self._blank = ",".join([""] * len(self.joint_names))
+
+    def open(self) -> TelemetryWriter:
+        if self._file is not None:
+            return self
+        if isinstance(self.target, io.IOBase) or hasattr(self.target, "write"):
+            self._file = self.target  # type: ignore[assignment]
+        else:
+            self._file = open(self.target, "w", newline="", encoding="utf-8")  # noqa: SIM115 (closed in close())
+            self._owns = True
+        self._file.write(",".join(self.columns) + "\n")
+        self._file.flush()
+        return self
+
+    def close(self) -> None:
+        if self._file is None:
+            return
+        try:
+            self._file.flush()
+            if self._owns:
+                self._file.close()
+        finally:
+            self._file = None
+
+    def __enter__(self) -> TelemetryWriter:
+        return self.open()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __call__(self, record: TickRecord) -> None:
+        self.write(record)
+
+    def write(self, r: TickRecord) -> None:
+        """Append one row and flush it."""
+        if self._file is None:
+            raise ValueError("Expected an open TelemetryWriter, got a closed one (use it as a context manager)")
+        target = ",".join(f"{v:.6f}" for v in r.target)
+        cmd = ",".join(f"{v:.6f}" for v in r.q_cmd)
+        present = self._blank if r.q_present is None else ",".join(f"{v:.6f}" for v in r.q_present)
+        self._file.write(
+            f"{r.time:.6f},{r.clip_time:.6f},{r.tick},{target},{cmd},{present},"
+            f"{r.ik_error * 1e3:.4f},{r.ik_sweeps},{int(r.ik_converged)},"
+            f"{(r.compute_time + r.bus_time) * 1e3:.4f},{r.compute_time * 1e3:.4f},{r.bus_time * 1e3:.4f},"
+            f"{int(r.clamped)},{int(r.velocity_limited)},{int(r.overrun)},{r.bus_retries},{int(r.lead_in)}\n"
+        )
+        self._file.flush()
+        self.rows += 1

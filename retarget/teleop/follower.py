@@ -1,0 +1,483 @@
+"""Teleoperation: steer the tool point to targets that arrive while the arm moves.
+
+A :class:`Follower` turns a target source (:mod:`retarget.teleop.sources`: ``--to``, ``--stdin``, ``--udp``,
+the interactive keys) into the per-tick target of the control loop (:class:`retarget.tick_loop.TargetSource`):
+
+- accepted targets queue in arrival order; the follower steers toward the oldest one it has not passed,
+  so a stream that comes faster than the arm moves is still visited *in order*;
+- a **setpoint** walks from the tool point toward that target at most ``max_speed / rate`` metres per
+  moving tick (the Cartesian speed limit; slots spent holding, or skipped by an overrun, give no extra
+  step; the loop then limits each joint to its max velocity), and the IK solves for the setpoint each tick;
+- a target is *passed* when the commanded tool point comes within ``pass_radius`` of it and a newer one
+  waits, *reached* when it comes within ``tolerance`` and none waits, and given up as *unreachable* when
+  the commanded tool point has stopped getting closer for ``stall_time`` seconds' worth of ticks that ran
+  (slots skipped by an overrun do not count: a bus stall is no stalled arm; the arm is then at the
+  nearest point it can reach);
+- with nothing to steer toward (no target yet, the last one reached or given up, or a stale stream) the
+  follower returns ``None``: the loop **holds** the commanded pose and runs no IK at all;
+- **stale**: while the source is open and no target came for ``timeout`` seconds, the queue is dropped
+  and the arm holds until a new target comes;
+- **superseded**: with ``max_lag``, a target received more than ``max_lag`` seconds before the newest
+  one is skipped (counted), so a live stream faster than the arm cannot build an ever-growing lag.
+
+Every outcome is recorded as a :class:`Visit`.  Frames: everything is the arm's base frame, metres;
+:class:`~retarget.teleop_input.BasePose` turns world-frame input into it at the gate.
+"""
+
+from __future__ import annotations
+
+import collections
+import enum
+import logging
+import math
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from retarget.errors import ConfigError
+from retarget.teleop.gate import step_toward
+
+if TYPE_CHECKING:
+    from retarget.arm.model import Arm
+    from retarget.control.bus import Bus
+    from retarget.control.clock import Clock
+    from retarget.control.loop import LoopConfig, TickRecord, TickStats
+    from retarget.control.summary import RunSummary
+    from retarget.ik.ccd import CCDSolver, IKResult
+    from retarget.teleop.gate import Target
+    from retarget.teleop.sources import Source
+
+__all__ = ["Follower", "Phase", "PoseSolver", "TeleopResult", "Visit", "run_teleop", "tool_point"]
+
+log = logging.getLogger(__name__)
+
+DEFAULT_MAX_SPEED = 0.2  #: m/s, Cartesian speed limit of the tool point's setpoint
+DEFAULT_TOLERANCE = 0.005  #: m, a one-shot target counts as reached within this (by FK of the present positions)
+DEFAULT_PASS_RADIUS = 0.005  #: m, an intermediate stream point counts as passed within this
+DEFAULT_ORIENTATION_TOLERANCE = math.radians(2.0)  #: rad, a target orientation counts as reached within this
+ORIENTATION_SCALE = 0.1  #: m per rad: how orientation error counts against distance when judging progress
+
+
+class Phase(enum.Enum):
+    """What the follower is doing."""
+
+    WAITING = "waiting"  #: no target yet: hold
+    MOVING = "moving"  #: steering toward a target
+    HOLDING = "holding"  #: the last target was reached or given up: hold
+    STALE = "stale"  #: the stream went quiet for ``timeout`` seconds: hold
+
+
+@dataclass(frozen=True)
+class Visit:
+    """The outcome of one target: reached/passed (``reached``) or given up at the nearest point."""
+
+    seq: int  #: the target's number in its source
+    target: np.ndarray  #: ``(3,)`` metres, base frame
+    reached: bool
+    residual: float  #: metres, commanded tool point to target when it was left
+    tick: int  #: the tick it was left at
+    rotation: np.ndarray | None = None  #: ``(3, 3)`` the target orientation, if it had one
+    orientation_error: float = math.nan  #: radians, commanded tool frame to ``rotation`` when it was left
+
+
+def tool_point(arm: Arm, q: np.ndarray) -> np.ndarray:
+    """The tool point ``(3,)`` metres, base frame, of joint angles ``q`` ``(n_joints,)`` radians."""
+    T, _ = arm.fk(q)
+    return np.array(T[:3, 3], dtype=np.float64)
+
+
+def rotation_angle(R: np.ndarray, target: np.ndarray) -> float:
+    """The angle, radians in ``[0, pi]``, of the rotation from ``R`` to ``target`` (both ``(3, 3)``)."""
+    c = (float(np.trace(R.T @ target)) - 1.0) / 2.0
+    return math.acos(min(1.0, max(-1.0, c)))
+
+
+def _positive(value: float, key: str, *, inf: bool = False) -> float:
+    value = float(value)
+    if not (value > 0 and (math.isfinite(value) or (inf and value == math.inf))):
+        raise ConfigError("Expected a number > 0", key=key, value=value)
+    return value
+
+
+class Follower:
+    """Follows the targets of ``source`` on ``arm``; a :class:`~retarget.tick_loop.TargetSource`.
+
+    Keyword-only knobs (metres, seconds): ``rate`` (ticks per second of the loop), ``max_speed``
+    (``inf``: no Cartesian limit), ``tolerance``, ``pass_radius``, ``timeout`` (None: never stale),
+    ``max_lag`` (None: visit every target), ``stall_time``; ``orientation_tolerance`` (radians) for
+    targets with a rotation, which count as reached only when the tool frame is within it too.
+    ``lockstep``: for a virtual clock (``--fast``), wait up to ``idle_wait`` *real* seconds for input
+    whenever there is nothing to do, so virtual time does not race ahead of a reader thread.  Call
+    :meth:`start` with the start pose before the first tick.
+    """
+
+    def __init__(
+        self,
+        arm: Arm,
+        source: Source,
+        *,
+        clock: Clock,
+        rate: float,
+        max_speed: float = DEFAULT_MAX_SPEED,
+        tolerance: float = 1.5e-3,
+        pass_radius: float = DEFAULT_PASS_RADIUS,
+        timeout: float | None = None,
+        max_lag: float | None = None,
+        stall_time: float = 0.25,
+        stall_distance: float = 1e-4,
+        orientation_tolerance: float = DEFAULT_ORIENTATION_TOLERANCE,
+        lockstep: bool = False,
+        idle_wait: float = 0.1,
+        queue_length: int = 4096,
+    ):
+        self.arm = arm
+        self.source = source
+        self.clock = clock
+        self.rate = _positive(rate, "--rate")
+        self.max_speed = _positive(max_speed, "--max-speed", inf=True)
+        self.tolerance = _positive(tolerance, "--tolerance")
+        self.pass_radius = max(_positive(pass_radius, "pass_radius"), self.tolerance)
+        self.timeout = None if timeout is None else _positive(timeout, "--timeout")
+        self.max_lag = None if max_lag is None else _positive(max_lag, "--max-lag")
+        self.stall_ticks = max(3, int(round(_positive(stall_time, "stall_time") * self.rate)))
+        self.stall_distance = float(stall_distance)
+        self.orientation_tolerance = _positive(orientation_tolerance, "orientation_tolerance")
+        self.tool_rotation: np.ndarray | None = None  #: ``(3, 3)`` the commanded tool frame after the last tick
+        self.lockstep = lockstep
+        self.idle_wait = float(idle_wait)
+        self._step = self.max_speed / self.rate  # metres per tick
+        self._queue: collections.deque[Target] = collections.deque(maxlen=queue_length)
+        self.goal: Target | None = None  #: the target being steered toward
+        self.setpoint: np.ndarray | None = None  #: ``(3,)`` the rate-limited point the IK solves for
+        self.tool: np.ndarray | None = None  #: ``(3,)`` the commanded tool point after the last tick
+        self.phase = Phase.WAITING
+        self.visits: list[Visit] = []
+        self.received = 0  #: targets taken from the source
+        self.stale_events = 0  #: times the stream went stale
+        self.skipped = 0  #: targets superseded (older than ``max_lag`` behind the newest) and not visited
+        self._best = math.inf
+        self._since_best = 0  # ticks observed at the goal since the cost last improved (not slots: see observe)
+        self._last_tick = -1
+
+    # ------------------------------------------------------------------ lifecycle
+
+    def start(self, q_start: np.ndarray) -> None:
+        """Begin at joint angles ``q_start`` ``(n_joints,)`` radians: the setpoint starts at their tool point."""
+        T, _ = self.arm.fk(q_start)
+        self.tool, self.tool_rotation = T[:3, 3].copy(), T[:3, :3].copy()
+        self.setpoint = self.tool.copy()
+
+    @property
+    def last_target(self) -> np.ndarray | None:
+        """``(3,)`` the target being steered toward, else the last one left; None before the first."""
+        if self.goal is not None:
+            return self.goal.position
+        return self.visits[-1].target if self.visits else None
+
+    @property
+    def last_rotation(self) -> np.ndarray | None:
+        """``(3, 3)`` the orientation of :attr:`last_target`, if it has one."""
+        if self.goal is not None:
+            return self.goal.rotation
+        return self.visits[-1].rotation if self.visits else None
+
+    @property
+    def pending(self) -> int:
+        """Targets queued behind the current one."""
+        return len(self._queue)
+
+    def finished(self, tick: int = 0) -> bool:
+        """True once the source is closed and every target it gave was reached, passed or given up."""
+        return self.source.closed and self.goal is None and not self._queue and not self.source.queued
+
+    # ------------------------------------------------------------------ the loop's side
+
+    def _pull(self) -> None:
+        new = self.source.drain()
+        if not new:
+            return
+        self._queue.extend(new)
+        self.received += len(new)
+        if self.phase is Phase.STALE:
+            log.info("target stream resumed")
+        if self.max_lag is not None:
+            newest = self._queue[-1].received
+            while len(self._queue) > 1 and newest - self._queue[0].received > self.max_lag:
+                self._queue.popleft()
+                self.skipped += 1
+            if self.goal is not None and newest - self.goal.received > self.max_lag:
+                self.goal = None  # superseded: steer on from where the arm is to the next one
+                self.setpoint = self.tool.copy()
+                self.skipped += 1
+
+    def target_at(self, tick: int, t: float) -> tuple[np.ndarray, np.ndarray | None, bool] | None:
+        """The target of tick ``tick``: ``(position (3,), rotation (3, 3) | None, clamped)``, or None to hold."""
+        if self.setpoint is None:
+            raise RuntimeError("Follower.start(q_start) must be called before the first tick")
+        self._pull()
+        if self.timeout is not None and not self.source.closed and self.received:
+            latest = self.source.latest()
+            if latest is not None and self.clock.now() - latest.received > self.timeout:
+                if self.phase is not Phase.STALE:
+                    self.stale_events += 1
+                    log.warning("no target for %.3g s: holding position", self.timeout)
+                    if self.goal is not None:
+                        self._leave(False, tick)
+                self._queue.clear()
+                self.phase = Phase.STALE
+                return None
+        if self.goal is None:
+            if not self._queue and self.lockstep and not self.source.closed:
+                self.source.wait(self.idle_wait)
+                self._pull()
+            if not self._queue:
+                if self.phase is Phase.STALE:
+                    return None
+                self.phase = Phase.HOLDING if self.visits else Phase.WAITING
+                return None
+            self.goal = self._queue.popleft()
+            self.setpoint = self.tool.copy()  # restart the walk where the arm is commanded to be
+            self._best, self._since_best = math.inf, 0
+        self.phase = Phase.MOVING
+        self._last_tick = tick
+        # one slot's step per moving tick, whatever slots passed since the last one: after a hold, a stale
+        # stream or a wait, that gap is time spent standing, and after an overrun the loop's joint limit is one
+        # slot too, so a longer step would only let the setpoint (and the IK) run ahead of the speed limit
+        self.setpoint = step_toward(self.setpoint, self.goal.position, self._step)
+        return self.setpoint, self.goal.rotation, False
+
+    def observe(self, tick: int, q_cmd: np.ndarray, q_present: np.ndarray | None = None) -> None:
+        """After tick ``tick``: the commanded joint angles ``q_cmd`` ``(n_joints,)`` radians."""
+        T, _ = self.arm.fk(q_cmd)
+        self.tool, self.tool_rotation = T[:3, 3].copy(), T[:3, :3].copy()
+        goal = self.goal
+        if goal is None or not np.array_equal(self.setpoint, goal.position):
+            return  # holding, or the setpoint is still on its way
+        d = float(np.linalg.norm(self.tool - goal.position))
+        angle = 0.0 if goal.rotation is None else rotation_angle(self.tool_rotation, goal.rotation)
+        radius = self.pass_radius if self._queue else self.tolerance
+        cost = d + ORIENTATION_SCALE * angle
+        if d <= radius and angle <= self.orientation_tolerance:
+            self._leave(True, tick, d)
+        elif cost < self._best - self.stall_distance:
+            self._best, self._since_best = cost, 0
+        elif (since := self._since_best + 1) < self.stall_ticks:  # ticks, not slots: a bus stall is no stalled arm
+            self._since_best = since
+        else:
+            log.info("target %d unreachable: holding %.1f mm, %.1f deg from it", goal.seq, d * 1e3, math.degrees(angle))
+            self._leave(False, tick, d)
+
+    def cancel(self) -> None:
+        """Stop steering (the user quit): drop the queue and the current target; the loop holds from the next
+        tick, and the run ends once the servos settle if the source is closed too.  Safe from a callback."""
+        self._queue.clear()
+        self.source.drain()
+        if self.goal is not None:
+            residual = float(np.linalg.norm(self.tool - self.goal.position))
+            self._leave(residual <= self.tolerance, self._last_tick, residual)
+
+    def _leave(self, reached: bool, tick: int, residual: float | None = None) -> None:
+        goal = self.goal
+        assert goal is not None
+        if residual is None:
+            residual = float(np.linalg.norm(self.tool - goal.position))
+        angle = math.nan if goal.rotation is None else rotation_angle(self.tool_rotation, goal.rotation)
+        self.visits.append(Visit(goal.seq, goal.position, reached, residual, tick, goal.rotation, angle))
+        self.goal = None
+        self.setpoint = self.tool.copy()
+        self.phase = Phase.HOLDING
+
+
+# ------------------------------------------------------------------------------------------------ the session
+
+TICK = 2 * math.pi / 4096  #: rad, one position tick of an X-series servo
+#: the servos have arrived when the positions read back are within half a tick (plus rounding) of the goals, or
+#: stopped changing within this of them (a real servo may hold a tick or two off under load)
+SETTLE_TOLERANCE = 3 * TICK
+
+
+@dataclass(frozen=True)
+class TeleopResult:
+    """The outcome of a teleop run.  Positions ``(3,)`` metres, base frame."""
+
+    summary: RunSummary
+    stats: TickStats
+    visits: tuple[Visit, ...]
+    target: np.ndarray | None  #: the last target steered toward (None: no target came)
+    reached: np.ndarray  #: tool point of the final present positions (of the goals in a dry run)
+    residual: float | None  #: metres, ``|reached - target|``
+    tolerance: float
+    received: int  #: targets accepted
+    rejects: dict[str, int]  #: rejected messages by reason
+    stale_events: int
+    skipped: int  #: targets superseded by newer ones (``max_lag``) and not visited
+    q_final: np.ndarray  #: ``(n_joints,)`` rad, the final present positions (goals in a dry run)
+    #: radians, the final tool frame to the last target's orientation (nan when it had none)
+    orientation_error: float = math.nan
+    orientation_tolerance: float = DEFAULT_ORIENTATION_TOLERANCE
+
+    @property
+    def reached_target(self) -> bool:
+        """True when the last target was reached within ``tolerance`` (and ``orientation_tolerance`` when it
+        had an orientation); False when none came."""
+        if self.residual is None or self.residual > self.tolerance:
+            return False
+        return math.isnan(self.orientation_error) or self.orientation_error <= self.orientation_tolerance
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready: lengths in metres (``_m``) or millimetres (``_mm``), angles in degrees (``_deg``)."""
+
+        def vec(v: np.ndarray | None) -> list[float] | None:
+            return None if v is None else [round(float(x), 6) for x in v]
+
+        return {
+            "target_m": vec(self.target),
+            "reached_m": vec(self.reached),
+            "residual_mm": None if self.residual is None else round(self.residual * 1e3, 3),
+            "tolerance_mm": round(self.tolerance * 1e3, 3),
+            "orientation_error_deg": None
+            if math.isnan(self.orientation_error)
+            else round(math.degrees(self.orientation_error), 3),
+            "reached": self.reached_target,
+            "joints_deg": [round(float(np.degrees(q)), 3) for q in self.q_final],
+            "targets_received": self.received,
+            "targets_reached": sum(v.reached for v in self.visits),
+            "targets_unreachable": sum(not v.reached for v in self.visits),
+            "rejected": self.rejects,
+            "targets_skipped": self.skipped,
+            "stale_events": self.stale_events,
+            "hold_ticks": self.stats.holds,
+        }
+
+    def format(self) -> str:
+        """Human lines for stderr."""
+        rejected = sum(self.rejects.values())
+        by_reason = ", ".join(f"{k} {v}" for k, v in self.rejects.items() if v)
+        lines = [
+            f"  targets: {self.received} received, {sum(v.reached for v in self.visits)} reached, "
+            f"{sum(not v.reached for v in self.visits)} unreachable, {rejected} rejected"
+            + (f" ({by_reason})" if by_reason else "")
+            + f"; {self.skipped} skipped (lag); {self.stale_events} stale; {self.stats.holds} hold ticks"
+        ]
+        return "\n".join(lines)
+
+
+class PoseSolver:
+    """Two :class:`~retarget.ik.CCDSolver` s behind one ``solve``: targets without a rotation use the
+    mapping's position-only per-joint weights (roll joints held), targets with one use every joint and
+    an orientation weight.  Budget and tolerance from the loop config."""
+
+    def __init__(self, arm: Arm, config: LoopConfig, *, orientation_weight: float = 0.1):
+        from retarget.ik.ccd import CCDSolver
+        from retarget.mapping.config import MappingConfig
+        from retarget.mapping.geometry import ik_weights
+
+        mapping = MappingConfig.from_table(arm.mapping, path=arm.source)
+        budget = {"max_iterations": config.ik_iterations, "tolerance": config.ik_tolerance}
+        self.position = CCDSolver(arm, weights=ik_weights(arm, mapping), **budget)
+        self.pose = CCDSolver(arm, orientation_weight=orientation_weight, **budget)
+
+    def solve(self, target: np.ndarray, q0: np.ndarray, rotation: np.ndarray | None = None) -> IKResult:
+        if rotation is None:
+            return self.position.solve(target, q0)
+        return self.pose.solve(target, q0, rotation)
+
+
+class _Run:
+    """The follower seen by the loop: adds the end condition (the source finished and the servos settled)."""
+
+    def __init__(self, follower: Follower, settle_ticks: int):
+        self.follower = follower
+        self.settle_ticks = settle_ticks
+        self.target_at = follower.target_at
+        self.start = follower.start
+        self.present: np.ndarray | None = None
+        self.previous: np.ndarray | None = None
+        self.q_cmd: np.ndarray | None = None
+        self._done_tick: int | None = None
+
+    def observe(self, tick: int, q_cmd: np.ndarray, q_present: np.ndarray | None) -> None:
+        self.follower.observe(tick, q_cmd, q_present)
+        self.q_cmd, self.previous, self.present = q_cmd, self.present, q_present
+
+    def finished(self, tick: int) -> bool:
+        if not self.follower.finished(tick):
+            self._done_tick = None
+            return False
+        if self.present is None or self.q_cmd is None:
+            return True  # a dry run (or nothing ran): the goals are the result
+        if self._done_tick is None:
+            self._done_tick = tick
+        off = float(np.max(np.abs(self.present - self.q_cmd)))
+        still = self.previous is not None and np.array_equal(self.present, self.previous)
+        settled = off <= 0.6 * TICK or (still and off <= SETTLE_TOLERANCE)
+        return settled or tick - self._done_tick >= self.settle_ticks
+
+
+def run_teleop(
+    arm: Arm,
+    follower: Follower,
+    *,
+    config: LoopConfig,
+    clock: Clock,
+    bus: Bus | None = None,
+    solver: CCDSolver | PoseSolver | None = None,
+    q_start: np.ndarray | None = None,
+    tolerance: float = DEFAULT_TOLERANCE,
+    settle_time: float = 2.0,
+    on_tick: Callable[[TickRecord], None] | None = None,
+    on_progress: Callable[[TickRecord], None] | None = None,
+    stop: threading.Event | None = None,
+    name: str = "teleop",
+) -> TeleopResult:
+    """Run the shared control loop (:func:`retarget.tick_loop.run_ticks`) on ``follower`` until its source is
+    finished and the servos settled (at most ``settle_time`` s more), ``config.max_ticks``, ``stop`` or Ctrl-C.
+
+    ``bus`` must be connected (None: a dry run).  The reached point is the FK of the positions read
+    back at the end.  ``solver`` defaults to a :class:`~retarget.ik.CCDSolver` with the config's budget
+    and the mapping's per-joint weights (orientation weight 0.1 for targets with a rotation).
+    """
+    from retarget.control.loop import run_ticks
+
+    if solver is None:
+        solver = PoseSolver(arm, config)
+    run = _Run(follower, settle_ticks=max(1, int(round(settle_time * config.rate))))
+    stats = run_ticks(
+        arm,
+        run,
+        solver,
+        config=config,
+        clock=clock,
+        bus=bus,
+        q_start=q_start,
+        on_tick=on_tick,
+        on_progress=on_progress,
+        stop=stop,
+    )
+    q_final = stats.q_present if stats.q_present is not None else stats.q_cmd
+    T, _ = arm.fk(q_final)
+    reached = np.array(T[:3, 3], dtype=np.float64)
+    rotation = follower.last_rotation
+    orientation_error = math.nan if rotation is None else rotation_angle(T[:3, :3], rotation)
+    target = follower.last_target
+    residual = None if target is None else float(np.linalg.norm(reached - target))
+    summary = stats.summary(arm=arm.name, clip=name, frames=follower.received, duration_s=stats.run_time)
+    return TeleopResult(
+        summary=summary,
+        stats=stats,
+        visits=tuple(follower.visits),
+        target=target,
+        reached=reached,
+        residual=residual,
+        tolerance=float(tolerance),
+        received=follower.received,
+        rejects=follower.source.rejects,
+        stale_events=follower.stale_events,
+        skipped=follower.skipped,
+        q_final=np.array(q_final, dtype=np.float64),
+        orientation_error=orientation_error,
+        orientation_tolerance=follower.orientation_tolerance,
+    )

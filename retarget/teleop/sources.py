@@ -1,0 +1,317 @@
+"""Teleoperation target sources: where accepted targets arrive from (stdin, UDP, one shot, fed by hand).
+
+A source passes each raw message (one line of ``--stdin``, one datagram of ``--udp``, the ``--to``
+option) through a :class:`~retarget.teleop_input.TargetGate`, which parses, frame-changes and
+bound-checks it (:mod:`retarget.teleop.gate`).  Each accepted :class:`~retarget.teleop_input.Target`
+is stamped with its receive time on the *loop's* clock; a source keeps the latest one (:meth:`Source.latest`)
+and queues every accepted one in order (:meth:`Source.drain`), so a follower can visit a fast stream's
+points in order, and can decide staleness (no target for ``timeout`` seconds).  Network input binds to
+loopback unless the user names another address, which is warned about loudly.
+
+This module is I/O only: it imports neither ``drivers``, ``sim`` nor ``serial``.
+"""
+
+from __future__ import annotations
+
+import collections
+import ipaddress
+import logging
+import math
+import socket
+import sys
+import threading
+from collections.abc import Callable
+from typing import IO
+
+from retarget.errors import ConfigError
+from retarget.teleop.gate import Message, Reject, Target, TargetGate, TargetRejected, parse_message
+
+__all__ = [
+    "DEFAULT_UDP_HOST",
+    "QUEUE_LENGTH",
+    "OneShotSource",
+    "Source",
+    "StdinSource",
+    "UdpSource",
+    "is_loopback",
+    "parse_address",
+]
+
+log = logging.getLogger(__name__)
+
+DEFAULT_UDP_HOST = "127.0.0.1"
+QUEUE_LENGTH = 1024  #: accepted targets waiting to be followed; the oldest is dropped (and counted) beyond
+
+
+class Source:
+    """A target source: the latest target, the queue of accepted ones, closed, a condition.
+
+    The base of the stdin, UDP, one-shot and key sources; usable on its own as a source an
+    application (or a test) feeds with :meth:`feed`.  ``latest()``/``drain()``/``wait()`` may be
+    called from the control loop while another thread feeds.
+    """
+
+    name = "source"
+
+    def __init__(self, gate: TargetGate, *, queue_length: int = QUEUE_LENGTH):
+        self.gate = gate
+        self._queue: collections.deque[Target] = collections.deque()
+        self._queue_length = queue_length
+        self._latest: Target | None = None
+        self._closed = False
+        self._cond = threading.Condition()
+        self.dropped = 0  #: accepted targets dropped from a full queue (oldest first)
+
+    # -- producer side
+    def _push(self, target: Target) -> None:
+        with self._cond:
+            if len(self._queue) >= self._queue_length:
+                self._queue.popleft()
+                self.dropped += 1
+            self._queue.append(target)
+            self._latest = target
+            self._cond.notify_all()
+
+    def feed(self, data: str | bytes) -> None:
+        """Pass one raw message through the gate; queue it when accepted (a reject is counted)."""
+        target = self.gate.accept(data, source=self.name)
+        if target is not None:
+            self._push(target)
+        else:
+            with self._cond:
+                self._cond.notify_all()
+
+    def _finish(self) -> None:
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+
+    # -- consumer side
+    def latest(self) -> Target | None:
+        """The most recent accepted target (with its receive time), or None before the first."""
+        with self._cond:
+            return self._latest
+
+    def drain(self) -> list[Target]:
+        """Every target accepted since the last call, oldest first."""
+        with self._cond:
+            out = list(self._queue)
+            self._queue.clear()
+            return out
+
+    @property
+    def queued(self) -> int:
+        """Accepted targets not drained yet."""
+        with self._cond:
+            return len(self._queue)
+
+    @property
+    def closed(self) -> bool:
+        """True once no more targets can come (end of input, or closed)."""
+        with self._cond:
+            return self._closed
+
+    def wait(self, timeout: float) -> bool:
+        """Block up to ``timeout`` real seconds until a target is queued or the source closes; True if so."""
+        with self._cond:
+            return self._cond.wait_for(lambda: bool(self._queue) or self._closed, timeout)
+
+    def is_stale(self, now: float, timeout: float) -> bool:
+        """True when the latest target is older than ``timeout`` seconds at ``now`` (loop clock), or none came."""
+        latest = self.latest()
+        return latest is None or now - latest.received > timeout
+
+    @property
+    def rejects(self) -> dict[str, int]:
+        return self.gate.rejects.counts()
+
+    def close(self) -> None:
+        self._finish()
+
+    def __enter__(self):
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def start(self):
+        return self
+
+
+class OneShotSource(Source):
+    """A single target (``--to``), already accepted; closed from the start."""
+
+    name = "--to"
+
+    def __init__(self, gate: TargetGate, text: str, *, rpy: str | None = None):
+        super().__init__(gate)
+        message = parse_message(text, max_bytes=gate.max_bytes, key="--to")
+        if message is None:
+            raise TargetRejected(Reject.MALFORMED, "Expected X,Y,Z metres", key="--to", value=text)
+        if message.rpy is not None:
+            raise TargetRejected(Reject.MALFORMED, "Expected X,Y,Z (give the orientation with --rpy)", key="--to",
+                                 value=text)  # fmt: skip
+        if rpy is not None:
+            angles = parse_message(rpy, max_bytes=gate.max_bytes, key="--rpy")
+            if angles is None:
+                raise TargetRejected(Reject.MALFORMED, "Expected R,P,Y degrees", key="--rpy", value=rpy)
+            message = Message(message.position, angles.position * (math.pi / 180.0))
+        position, rotation = gate.convert(message, key="--to")
+        gate.accepted += 1
+        self._push(Target(position, rotation, gate.clock.now(), 0))
+        self._finish()
+
+
+class _ThreadSource(Source):
+    def __init__(self, gate: TargetGate, **kwargs: object):
+        super().__init__(gate, **kwargs)  # type: ignore[arg-type]
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+
+    def start(self):
+        """Start the reader thread (idempotent)."""
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._run_guarded, name=f"retarget-{self.name}", daemon=True)
+            self._thread.start()
+        return self
+
+    def _run_guarded(self) -> None:
+        try:
+            self._run()
+        except Exception:  # a reader must never die silently: say why, then behave like end of input
+            log.exception("%s reader failed; no more targets", self.name)
+        finally:
+            self._finish()
+
+    def _run(self) -> None:
+        raise NotImplementedError
+
+    def join(self, timeout: float | None = None) -> None:
+        if self._thread is not None:
+            self._thread.join(timeout)
+
+
+class StdinSource(_ThreadSource):
+    """Targets from lines of a stream (default ``sys.stdin``'s bytes), read by a daemon thread.
+
+    End of input closes the source.  A line longer than the gate's ``max_bytes`` is rejected
+    (``OVERSIZE``) without being held in memory whole.  :meth:`close` stops taking lines; a
+    thread blocked reading a terminal stays blocked until the next line (it is a daemon thread).
+    """
+
+    name = "stdin"
+
+    def __init__(self, gate: TargetGate, stream: IO[bytes] | IO[str] | None = None, **kwargs: object):
+        super().__init__(gate, **kwargs)
+        if stream is None:
+            stream = getattr(sys.stdin, "buffer", sys.stdin)
+        self.stream = stream
+        self.lines = 0  #: lines read, blank ones included
+
+    def _run(self) -> None:
+        limit = self.gate.max_bytes
+        readline: Callable[[int], bytes | str] = self.stream.readline
+        while not self._stop.is_set():
+            line = readline(limit + 2)  # room for "\r\n"
+            if not line:
+                return
+            self.lines += 1
+            nl = "\n" if isinstance(line, str) else b"\n"
+            if not line.endswith(nl) and len(line) > limit:  # over the limit: skip the rest of this line
+                while line and not line.endswith(nl):
+                    line = readline(limit + 2)
+                self.gate.reject(Reject.OVERSIZE, f"Expected a line of at most {limit} bytes", source=self.name)
+                continue
+            if self._stop.is_set():
+                return
+            self.feed(line.rstrip(nl).rstrip("\r" if isinstance(line, str) else b"\r"))
+
+    def close(self) -> None:
+        self._stop.set()
+        super().close()
+
+
+def parse_address(text: str, *, default_host: str = DEFAULT_UDP_HOST, key: str = "--udp") -> tuple[str, int]:
+    """``"PORT"``, ``"HOST:PORT"`` or ``"[V6]:PORT"`` -> ``(host, port)``; the host defaults to loopback."""
+    text = text.strip()
+    host, sep, port_text = text.rpartition(":")
+    if not sep:
+        host, port_text = default_host, text
+    elif host.startswith("[") and host.endswith("]"):
+        host = host[1:-1]
+    elif ":" in host:
+        raise ConfigError("Expected [HOST:]PORT (an IPv6 host in brackets: [::1]:PORT)", key=key, value=text)
+    host = host or default_host
+    try:
+        port = int(port_text)
+    except ValueError:
+        raise ConfigError("Expected [HOST:]PORT with a numeric port", key=key, value=text) from None
+    if not 0 <= port <= 65535:
+        raise ConfigError("Expected a port in 0..65535", key=key, value=port)
+    return host, port
+
+
+def is_loopback(host: str) -> bool:
+    """True for a loopback address or ``localhost``."""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+class UdpSource(_ThreadSource):
+    """Targets from UDP datagrams, one message each, on ``host:port`` (default loopback).
+
+    Binding another address than loopback, which the user must name, logs a loud warning: anyone
+    who can reach it can move the arm.  A datagram over ``max_bytes`` is rejected (``OVERSIZE``).
+    ``port=0`` binds an ephemeral port; :attr:`address` is the bound one.
+    """
+
+    name = "udp"
+    poll = 0.05  #: seconds between checks of the stop flag while no datagram comes
+
+    def __init__(self, gate: TargetGate, host: str = DEFAULT_UDP_HOST, port: int = 0, **kwargs: object):
+        super().__init__(gate, **kwargs)
+        if not is_loopback(host):  # said before binding, so the warning stands even when the bind fails
+            log.warning(
+                "UDP target input on %s:%d is NOT loopback: anyone who can reach this address can move the arm",
+                host,
+                port,
+            )
+        family = socket.AF_INET6 if ":" in host else socket.AF_INET
+        sock = socket.socket(family, socket.SOCK_DGRAM)
+        try:
+            sock.bind((host, port))
+        except OSError as exc:
+            sock.close()
+            raise ConfigError(f"cannot bind UDP {host}:{port}: {exc.strerror or exc}", key="--udp",
+                              value=f"{host}:{port}") from exc  # fmt: skip
+        sock.settimeout(self.poll)
+        self._sock = sock
+        self.address: tuple[str, int] = sock.getsockname()[:2]
+        self.datagrams = 0
+
+    def _run(self) -> None:
+        limit = self.gate.max_bytes
+        while not self._stop.is_set():
+            try:
+                data, peer = self._sock.recvfrom(limit + 1)
+            except TimeoutError:
+                continue
+            except OSError:
+                if self._stop.is_set():
+                    return
+                raise
+            self.datagrams += 1
+            if len(data) > limit:
+                self.gate.reject(Reject.OVERSIZE, f"Expected a datagram of at most {limit} bytes", source=self.name)
+                continue
+            self.feed(data)
+
+    def close(self) -> None:
+        self._stop.set()
+        self.join(timeout=2 * self.poll + 1.0)
+        self._sock.close()
+        super().close()

@@ -1,0 +1,413 @@
+"""Helpers shared by the tests: small BVH files, the real clips, reference FK, circle targets, the
+simulated wire decoded, and a dynamixel-sdk port on the simulator.  Fixtures stay in the ``conftest.py`` files;
+test modules import helpers from here, never from each other.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import random
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pytest
+import serial
+from dynamixel_sdk import PacketHandler, PortHandler
+
+import sim
+from drivers.control_table import Instruction
+from drivers.units import ticks_to_rad
+from retarget.control.clock import VirtualClock
+from retarget.mapping import Targets, Workspace
+from sim.server import PtyServer
+
+# ------------------------------------------------------------------ small BVH files
+ROT_ZXY = ("Zrotation", "Xrotation", "Yrotation")
+POS_XYZ = ("Xposition", "Yposition", "Zposition")
+
+
+@dataclass
+class J:
+    """A joint for :func:`bvh_text`: name, OFFSET, CHANNELS, children and an optional End Site OFFSET."""
+
+    name: str
+    offset: Sequence[float] = (0.0, 0.0, 0.0)
+    channels: Sequence[str] = ROT_ZXY
+    children: list[J] = field(default_factory=list)
+    end: Sequence[float] | None = None
+
+
+def joints_in_order(root: J) -> list[J]:
+    out = [root]
+    for c in root.children:
+        out += joints_in_order(c)
+    return out
+
+
+def n_channels(root: J) -> int:
+    return sum(len(j.channels) for j in joints_in_order(root))
+
+
+def bvh_text(
+    root: J,
+    frames: np.ndarray | Sequence[Sequence[float]] | None = None,
+    *,
+    frame_time: float = 1 / 30,
+    n_frames: int | None = None,
+    newline: str = "\n",
+    indent: str = "  ",
+    fmt: str = "{:.10g}",
+) -> str:
+    """BVH text of ``root``; ``frames`` ``(n, n_channels)`` (default: one frame of zeros)."""
+    if frames is None:
+        frames = np.zeros((1, n_channels(root)))
+    frames = np.asarray(frames, dtype=np.float64)
+    lines = ["HIERARCHY"]
+
+    def emit(j: J, depth: int) -> None:
+        pad = indent * depth
+        lines.append(f"{pad}{'ROOT' if depth == 0 else 'JOINT'} {j.name}")
+        lines.append(f"{pad}{{")
+        lines.append(f"{pad}{indent}OFFSET {' '.join(fmt.format(float(v)) for v in j.offset)}")
+        lines.append(f"{pad}{indent}CHANNELS {len(j.channels)} {' '.join(j.channels)}")
+        for c in j.children:
+            emit(c, depth + 1)
+        if j.end is not None:
+            lines.append(f"{pad}{indent}End Site")
+            lines.append(f"{pad}{indent}{{")
+            lines.append(f"{pad}{indent * 2}OFFSET {' '.join(fmt.format(float(v)) for v in j.end)}")
+            lines.append(f"{pad}{indent}}}")
+        lines.append(f"{pad}}}")
+
+    emit(root, 0)
+    lines += ["MOTION", f"Frames: {len(frames) if n_frames is None else n_frames}", f"Frame Time: {frame_time:.10g}"]
+    lines += [" ".join(fmt.format(float(v)) for v in row) for row in frames]
+    return newline.join(lines) + newline
+
+
+def arm_skeleton(
+    names: dict[str, str], *, prefix: str = "", wrist_end_site: bool = False, extra: Sequence[J] = ()
+) -> J:
+    """A small humanoid whose arm joints are named by ``names`` (keys: clavicle, upper, fore, hand, with
+    ``{side}`` placeholders filled with the values of ``names['left']`` / ``names['right']``)."""
+
+    def arm(side_key: str, s: float) -> J:
+        side = names[side_key]
+        hand = (
+            None if wrist_end_site else J(prefix + names["hand"].format(side=side), (s * 25, 0, 0), end=(s * 8, 0, 0))
+        )
+        fore = J(
+            prefix + names["fore"].format(side=side),
+            (s * 28, 0, 0),
+            children=[hand] if hand else [],
+            end=(s * 25, 0, 0) if wrist_end_site else None,
+        )
+        upper = J(prefix + names["upper"].format(side=side), (s * 15, 2, 0), children=[fore])
+        if names.get("clavicle"):
+            return J(prefix + names["clavicle"].format(side=side), (s * 2, 15, 0), children=[upper])
+        return upper
+
+    chest = J(
+        prefix + "Chest",
+        (0, 30, 0),
+        children=[J(prefix + "Neck", (0, 20, 0), end=(0, 20, 0)), arm("left", 1.0), arm("right", -1.0), *extra],
+    )
+    legs = [
+        J(prefix + "LeftUpLeg", (9, -4, 0), children=[J(prefix + "LeftLeg", (0, -43, 0), end=(0, -45, 0))]),
+        J(prefix + "RightUpLeg", (-9, -4, 0), children=[J(prefix + "RightLeg", (0, -43, 0), end=(0, -45, 0))]),
+    ]
+    return J(prefix + "Hips", (0, 0, 0), ("Xposition", "Yposition", "Zposition", *ROT_ZXY), children=[chest, *legs])
+
+
+# ------------------------------------------------------------------ the real clips
+REPO = Path(__file__).resolve().parent.parent
+
+
+SHARED_BVH = Path(os.environ.get("RETARGET_SHARED_BVH", REPO.parent / "shared" / "bvh"))
+
+
+def shared_clips() -> list[Path]:
+    """The real clips, sorted by name; empty when the folder is absent."""
+    return sorted(SHARED_BVH.glob("*.bvh")) if SHARED_BVH.is_dir() else []
+
+
+def shared_clip_params() -> list:
+    """``shared_clips()`` for ``parametrize``: one skipped case, with the reason, when the folder is absent."""
+    clips = shared_clips()
+    if clips:
+        return [pytest.param(c, id=c.stem) for c in clips]
+    reason = f"real BVH clips not found at {SHARED_BVH} (set RETARGET_SHARED_BVH)"
+    return [pytest.param(None, id="no-shared-clips", marks=pytest.mark.skip(reason=reason))]
+
+
+# ------------------------------------------------------------------ reference BVH FK
+UNIT = {"X": np.array([1.0, 0, 0]), "Y": np.array([0, 1.0, 0]), "Z": np.array([0, 0, 1.0])}
+
+
+def rodrigues(axis: np.ndarray, angle: float) -> np.ndarray:
+    k = axis / np.linalg.norm(axis)
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+
+
+def reference_fk(root: J, frames: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """World rotations, joint positions and End Site positions, one frame and one joint at a time, from 4x4
+    homogeneous transforms: T_local = translate(offset with position channels substituted) @ rotations."""
+    joints = joints_in_order(root)
+    parent = {}
+    for j in joints:
+        for c in j.children:
+            parent[c.name] = j.name
+    n = len(frames)
+    rot = np.zeros((n, len(joints), 3, 3))
+    pos = np.zeros((n, len(joints), 3))
+    ends = []
+    for f in range(n):
+        col = 0
+        world: dict[str, np.ndarray] = {}
+        sites = []
+        for k, j in enumerate(joints):
+            t = np.array(j.offset, dtype=float)
+            R = np.eye(3)
+            for ch in j.channels:
+                value = frames[f, col]
+                col += 1
+                if ch.endswith("position"):
+                    t["XYZ".index(ch[0])] = value
+                else:
+                    R = R @ rodrigues(UNIT[ch[0]], np.radians(value))
+            T = np.eye(4)
+            T[:3, :3] = R
+            T[:3, 3] = t
+            W = world[parent[j.name]] @ T if j.name in parent else T
+            world[j.name] = W
+            rot[f, k] = W[:3, :3]
+            pos[f, k] = W[:3, 3]
+            if j.end is not None:
+                sites.append((W @ np.append(np.array(j.end, dtype=float), 1.0))[:3])
+        ends.append(sites)
+    return rot, pos, np.array(ends).reshape(n, -1, 3)
+
+
+def random_frames(root: J, n: int, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    out = []
+    for j in joints_in_order(root):
+        for ch in j.channels:
+            out.append(rng.uniform(-40, 40, n) if ch.endswith("position") else rng.uniform(-180, 180, n))
+    return np.array(out).T
+
+
+# ------------------------------------------------------------------ targets for the control loop
+def circle_targets(arm, *, n_frames: int = 61, frame_time: float = 1 / 30, radius: float = 0.08) -> Targets:
+    """A circle in front of the arm, 2 s at 30 fps, well inside the workspace."""
+    t = np.arange(n_frames) * frame_time
+    phase = 2 * np.pi * t / (t[-1] or 1.0)
+    raw = np.stack([0.35 + 0 * t, radius * np.sin(phase), 0.25 + radius * np.cos(phase)], axis=-1)
+    return Targets.from_raw(raw, frame_time=frame_time, workspace=Workspace.for_arm(arm))
+
+
+def servo_angles(simbus, arm) -> np.ndarray:
+    """Joint angles read from the primary simulated servos' Present Position, radians."""
+
+    return np.array(
+        [
+            ticks_to_rad(simbus.servo(j.servos[0].id).get("Present Position"), offset=j.servos[0].offset)
+            for j in arm.joints
+        ]
+    )
+
+
+def torque(simbus, arm) -> list[int]:
+    return [
+        simbus.servo(i).get("Torque Enable") for i in arm.servo_ids if arm.gripper is None or i != arm.gripper.servo.id
+    ]
+
+
+# ------------------------------------------------------------------ the simulated wire
+GOAL = 116
+
+
+def goal_writes(sim_bus: sim.SimBus) -> list[dict[int, int]]:
+    """Every Goal Position SYNC_WRITE the simulated wire carried, decoded: [{id: ticks}, ...]."""
+    out = []
+    for entry in sim_bus.log:
+        p = entry.params
+        if entry.instruction != Instruction.SYNC_WRITE or int.from_bytes(p[0:2], "little") != GOAL:
+            continue
+        size = int.from_bytes(p[2:4], "little")
+        body = p[4:]
+        out.append(
+            {
+                body[k]: int.from_bytes(body[k + 1 : k + 1 + size], "little", signed=True)
+                for k in range(0, len(body), size + 1)
+            }
+        )
+    return out
+
+
+def torques(sim_bus: sim.SimBus) -> dict[int, int]:
+    return {s.id: s.get("Torque Enable") for s in sim_bus.servos}
+
+
+# ------------------------------------------------------------------ an SDK port on the simulator
+class UrlPortHandler(PortHandler):
+    """The SDK port, opening any pyserial URL (the same seam drivers.port uses)."""
+
+    def setupPort(self, cflag_baud):  # noqa: N802 - the SDK's name
+        if self.is_open:
+            self.closePort()
+        self.ser = serial.serial_for_url(self.port_name, baudrate=self.baudrate, bytesize=serial.EIGHTBITS, timeout=0)
+        self.is_open = True
+        self.ser.reset_input_buffer()
+        self.tx_time_per_byte = (1000.0 / self.baudrate) * 10.0
+        return True
+
+
+@dataclass
+class Rig:
+    """A simulated bus and an open dynamixel-sdk port on it."""
+
+    bus: sim.SimBus
+    clock: VirtualClock
+    port: PortHandler
+    ph: object
+    transport: str
+
+
+def open_rig(bus: sim.SimBus, transport: str) -> tuple[Rig, object]:
+    """Open ``bus`` over ``transport`` ("inproc" or "pty"); returns the rig and the resource to close."""
+    if transport == "inproc":
+        name = f"test-{id(bus)}"
+        port = UrlPortHandler(sim.register(name, bus))
+        assert port.openPort()
+        return Rig(bus, bus.clock, port, PacketHandler(2.0), transport), name
+    server = PtyServer(bus).start()
+    port = PortHandler(server.path)  # the plain SDK class
+    assert port.setBaudRate(bus.baud)
+    return Rig(bus, bus.clock, port, PacketHandler(2.0), transport), server
+
+
+def close_rig(rig: Rig, resource: object) -> None:
+    rig.port.closePort()
+    if isinstance(resource, PtyServer):
+        resource.close()
+    else:
+        sim.unregister(str(resource))
+
+
+needs_pty = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a POSIX pseudo-terminal")
+
+
+TRANSPORTS = [
+    pytest.param("inproc", id="inproc"),
+    pytest.param("pty", id="pty", marks=[pytest.mark.pty, needs_pty]),
+]
+
+
+# ------------------------------------------------------------------ teleop: an independent wx250s FK
+TICK_RAD = 2 * math.pi / 4096
+
+
+def _rot(axis: str, a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    R = {
+        "x": [[1, 0, 0], [0, c, -s], [0, s, c]],
+        "y": [[c, 0, s], [0, 1, 0], [-s, 0, c]],
+        "z": [[c, -s, 0], [s, c, 0], [0, 0, 1]],
+    }
+    T = np.eye(4)
+    T[:3, :3] = R[axis]
+    return T
+
+
+def _trans(x: float, y: float, z: float) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, 3] = (x, y, z)
+    return T
+
+
+WX250S = [
+    ((0, 0, 0.072), "z"),  # waist
+    ((0, 0, 0.03865), "y"),  # shoulder
+    ((0.04975, 0, 0.25), "y"),  # elbow
+    ((0.175, 0, 0), "x"),  # forearm_roll
+    ((0.075, 0, 0), "y"),  # wrist_angle
+    ((0.065, 0, 0), "x"),  # wrist_rotate
+]
+
+
+WX250S_TOOL = (0.093575, 0, 0)  # ee_gripper_link
+
+
+def wx250s_tool(q: np.ndarray) -> np.ndarray:
+    """Tool point (3,) metres of joint angles (6,) radians, by a plain chain of 4x4 transforms."""
+    T = np.eye(4)
+    for (xyz, axis), angle in zip(WX250S, q, strict=True):
+        T = T @ _trans(*xyz) @ _rot(axis, angle)
+    return (T @ _trans(*WX250S_TOOL))[:3, 3]
+
+
+def servo_joint_angles(simbus, arm) -> np.ndarray:
+    """Joint angles from the primary servos' Present Position registers: (ticks - 2048) x 2 pi / 4096.
+
+    The driver reverses servos with Drive Mode, so the registers already read in the joint's sense."""
+    assert all(j.servos[0].offset == 0 for j in arm.joints)
+    return np.array([(simbus.servo(j.servos[0].id).get("Present Position") - 2048) * TICK_RAD for j in arm.joints])
+
+
+def goal_registers(simbus) -> dict[int, int]:
+    return {s.id: s.get("Goal Position") for s in simbus.servos}
+
+
+# ------------------------------------------------------------------ garbage target messages
+def garbage(rng: random.Random, n: int) -> list[bytes]:
+    """``n`` seeded garbage messages, none blank: random bytes, NaN/inf, huge numbers, partial/bad JSON, oversize."""
+    out: list[bytes] = []
+    while len(out) < n:
+        kind = rng.randrange(8)
+        if kind == 0:
+            m = b"!" + bytes(rng.randrange(256) for _ in range(rng.randrange(0, 64)))  # "!": never blank
+        elif kind == 1:
+            m = f"{rng.choice(['nan', 'NaN', 'inf', '-inf', '1e999'])} {rng.random()} {rng.random()}".encode()
+        elif kind == 2:
+            m = " ".join(f"{rng.uniform(-1, 1) * 10 ** rng.randrange(3, 300):g}" for _ in range(3)).encode()
+        elif kind == 3:
+            full = json.dumps({"x": rng.random(), "y": rng.random(), "z": rng.random()})
+            m = full[: rng.randrange(1, len(full) - 1)].encode()
+        elif kind == 4:
+            m = rng.choice([b'{"x": NaN, "y": 0, "z": 0.2}', b'{"x": 0.3}', b'{"x": [], "y": 0, "z": 0}', b"null"])
+        elif kind == 5:
+            m = b"0.3 0 0.2 " * rng.randrange(120, 300)  # oversize
+        elif kind == 6:
+            m = f"{rng.random()} {rng.random()}".encode()  # two numbers
+        else:
+            m = f"0.3 0 {-rng.uniform(0.01, 1)}".encode()  # below the floor
+        m = m.replace(b"\n", b"").replace(b"\r", b"")
+        if m.strip() and not m.strip().startswith(b"#"):
+            out.append(m)
+    return out
+
+
+# ------------------------------------------------------------------ URDF text
+def urdf_text(joints, links=None, name="robot") -> str:
+    if links is None:
+        links = sorted({j[2] for j in joints} | {j[3] for j in joints})
+    out = [f'<?xml version="1.0"?>\n<robot name="{name}">']
+    out += [f'  <link name="{link}"/>' for link in links]
+    for jname, kind, parent, child, xyz, axis, limit, *rest in joints:
+        rpy = rest[0] if rest else "0 0 0"
+        out.append(f'  <joint name="{jname}" type="{kind}">')
+        out.append(f'    <parent link="{parent}"/>\n    <child link="{child}"/>')
+        out.append(f'    <origin xyz="{xyz}" rpy="{rpy}"/>')
+        if axis:
+            out.append(f'    <axis xyz="{axis}"/>')
+        if limit:
+            out.append(f'    <limit lower="{limit[0]}" upper="{limit[1]}" effort="1" velocity="3.14159"/>')
+        out.append("  </joint>")
+    out.append("</robot>\n")
+    return "\n".join(out)

@@ -1,0 +1,92 @@
+"""The interactive mode's testable core: key -> target (Jog) and the newest-only key source."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from retarget.cli.tui import KEYS, MAX_STEP, MIN_STEP, Action, Jog, KeySource
+from retarget.control.clock import VirtualClock
+from retarget.teleop.gate import TargetBounds, TargetGate
+
+
+@pytest.fixture
+def jog(arm):
+    home = np.array([0.3, 0.0, 0.25])
+    return Jog(target=home.copy(), home=home, bounds=TargetBounds.for_arm(arm), step=0.01)
+
+
+@pytest.mark.parametrize(
+    ("keys", "delta"),
+    [
+        ("w", (1, 0, 0)),
+        ("UP", (1, 0, 0)),
+        ("s", (-1, 0, 0)),
+        ("DOWN", (-1, 0, 0)),
+        ("a", (0, 1, 0)),
+        ("LEFT", (0, 1, 0)),
+        ("d", (0, -1, 0)),
+        ("RIGHT", (0, -1, 0)),
+        ("r", (0, 0, 1)),
+        ("PGUP", (0, 0, 1)),
+        ("f", (0, 0, -1)),
+        ("PGDN", (0, 0, -1)),
+    ],
+    ids=lambda v: v if isinstance(v, str) else None,
+)
+def test_keys_nudge_one_axis(jog, keys, delta):
+    before = jog.target.copy()
+    assert jog.press(keys) is Action.MOVE
+    np.testing.assert_allclose(jog.target - before, np.array(delta) * 0.01, atol=1e-15)
+
+
+def test_every_mapped_key_moves_and_opposites_cancel(jog):
+    rng = np.random.default_rng(1)
+    start = jog.target.copy()
+    keys = list(KEYS)
+    presses = [keys[i] for i in rng.integers(0, len(keys), 200)]
+    for k in presses:
+        jog.press(k)
+    expected = start + sum(np.eye(3)[KEYS[k][0]] * KEYS[k][1] * 0.01 for k in presses)
+    np.testing.assert_allclose(jog.target, expected, atol=1e-12)  # nothing blocked this close to the centre
+
+
+def test_step_size_doubles_halves_and_is_bounded(jog):
+    assert jog.press("+") is Action.STEP and jog.step == pytest.approx(0.02)
+    for _ in range(20):
+        jog.press("+")
+    assert jog.step == MAX_STEP
+    for _ in range(40):
+        jog.press("-")
+    assert jog.step == MIN_STEP
+
+
+def test_bounds_block_the_nudge(jog):
+    jog.step = MAX_STEP
+    for _ in range(3):
+        jog.press("f")  # 0.25 -> 0.15 -> 0.05 -> -0.05 would be below the floor
+    assert jog.target[2] == pytest.approx(0.05)
+    assert jog.press("f") is Action.BLOCKED and "out_of_box" in jog.message
+    assert jog.target[2] == pytest.approx(0.05)
+
+
+def test_home_quit_and_unknown(jog):
+    jog.press("w")
+    assert jog.press("h") is Action.HOME
+    np.testing.assert_allclose(jog.target, jog.home)
+    assert jog.press("q") is Action.QUIT and jog.press("ESC") is Action.QUIT
+    assert jog.press("z") is Action.NONE
+
+
+def test_key_source_keeps_only_the_newest(arm, jog):
+    clock = VirtualClock(2.0)
+    src = KeySource(TargetGate(TargetBounds.for_arm(arm), clock=clock), jog)
+    for _ in range(5):
+        src.press("w")
+    src.press("+")  # no new target
+    (t,) = src.drain()
+    np.testing.assert_allclose(t.position, [0.35, 0, 0.25])
+    assert t.seq == 4 and t.received == 2.0 and src.dropped == 4
+    assert not src.closed
+    src.press("q")
+    assert src.closed
