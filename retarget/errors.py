@@ -13,6 +13,7 @@ and exits non-zero; ``-v`` shows the traceback.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 from os import PathLike
 
@@ -77,3 +78,35 @@ class BusError(RetargetError, OSError):
 
     def __str__(self) -> str:  # OSError's own __str__ would prepend errno fields
         return self.args[0]
+
+
+def require_positive(value: object, key: str, *, zero: bool = False, inf: bool = False) -> float:
+    """``value`` as a float when it is a number > 0 (``zero``: >= 0; ``inf``: may be +inf), else a ConfigError.
+
+    ``key`` is the field's name, as the library's callers spell it (the CLI maps it to its option).
+
+    >>> require_positive(0.5, "tolerance")
+    0.5
+    >>> require_positive(0, "tolerance")
+    Traceback (most recent call last):
+    ...
+    retarget.errors.ConfigError: tolerance: Expected a finite number > 0 (got 0)
+    """
+    number = isinstance(value, int | float) and not isinstance(value, bool)
+    x = float(value) if number else math.nan  # type: ignore[arg-type]
+    finite = math.isfinite(x) or (inf and x == math.inf)
+    if not finite or x < 0 or (x == 0 and not zero):
+        bound = ">= 0" if zero else "> 0"
+        raise ConfigError(f"Expected a {'' if inf else 'finite '}number {bound}", key=key, value=value)
+    return x
+
+
+def require_count(value: object, key: str, *, zero: bool = False) -> int:
+    """``value`` when it is an integer >= 1 (``zero``: >= 0), else a ConfigError naming ``key``.
+
+    >>> require_count(3, "max_iterations")
+    3
+    """
+    if not isinstance(value, int) or isinstance(value, bool) or value < (0 if zero else 1):
+        raise ConfigError(f"Expected an integer {'>= 0' if zero else '>= 1'}", key=key, value=value)
+    return value
