@@ -22,7 +22,7 @@ from dynamixel_sdk import COMM_SUCCESS, GroupSyncRead, GroupSyncWrite, PacketHan
 
 from drivers.dynamixel_bus import DynamixelBus
 from drivers.port import open_port
-from retarget.arm.config import load_arm
+from retarget.arm.load import load_arm
 from retarget.control.bus import ShutdownMode
 
 TARGET_RATIO = 1.5  #: the driver may cost at most this many times the raw SDK calls per tick

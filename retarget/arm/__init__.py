@@ -6,13 +6,15 @@
 - :mod:`~retarget.arm.kinematics`: forward kinematics, one pose or a batch, and the rotation helpers.
 """
 
-from retarget.arm.config import ArmFileReader, arm_dirs, list_arms, load_arm, read_toml, resolve_arm
+from retarget.arm.config import URDF_SUFFIXES, ArmFileReader, arm_dirs, is_urdf, list_arms, read_toml, resolve_arm
 from retarget.arm.kinematics import Chain, axis_angle_matrix, fk, fk_batch, matrix_rpy, rpy_matrix, transform
+from retarget.arm.load import load_arm
 from retarget.arm.model import SERVO_MODELS, Arm, Gripper, Joint, JointType, Servo
 from retarget.arm.urdf import UrdfJoint, UrdfModel, find_chain, load_urdf_arm, parse_urdf, servo_file
 
 __all__ = [
     "SERVO_MODELS",
+    "URDF_SUFFIXES",
     "Arm",
     "ArmFileReader",
     "Chain",
@@ -25,6 +27,7 @@ __all__ = [
     "arm_dirs",
     "axis_angle_matrix",
     "find_chain",
+    "is_urdf",
     "fk",
     "fk_batch",
     "list_arms",

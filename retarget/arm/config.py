@@ -61,15 +61,14 @@ from os import PathLike
 from pathlib import Path
 from typing import Any
 
-import retarget
 from retarget.arm.model import SERVO_MODELS, Arm, Gripper, Joint, JointType, Servo
 from retarget.errors import ConfigError
 
-__all__ = ["load_arm", "list_arms", "arm_dirs", "resolve_arm", "read_toml", "ArmFileReader"]
+__all__ = ["URDF_SUFFIXES", "ArmFileReader", "arm_dirs", "is_urdf", "list_arms", "read_toml", "resolve_arm"]
 
-#: Suffixes that make ``load_arm`` treat its argument as a path.
+#: Suffixes that make ``load_arm`` treat its argument as a path: a TOML arm file, or a URDF.
 _TOML_SUFFIXES = (".toml",)
-_URDF_SUFFIXES = (".urdf", ".xml")
+URDF_SUFFIXES = (".urdf", ".xml")
 
 _TOP_KEYS = {"name", "title", "baud", "tool", "poses", "joints", "gripper", "mapping"}
 _JOINT_KEYS = {"name", "type", "xyz", "rpy", "axis", "limits", "max_velocity", "servos"}
@@ -82,7 +81,7 @@ _MISSING = object()
 
 def arm_dirs() -> list[Path]:
     """The folders searched for bundled arms, in order: the installed copy, then the source checkout."""
-    package = Path(retarget.__file__).resolve().parent
+    package = Path(__file__).resolve().parents[1]  # the retarget package
     return [package / "_config" / "arms", package.parent / "config" / "arms"]
 
 
@@ -97,7 +96,12 @@ def list_arms() -> list[str]:
 
 def _looks_like_path(name: str | PathLike[str]) -> bool:
     text = str(name)
-    return isinstance(name, PathLike) or "/" in text or "\\" in text or text.endswith(_TOML_SUFFIXES + _URDF_SUFFIXES)
+    return isinstance(name, PathLike) or "/" in text or "\\" in text or text.endswith(_TOML_SUFFIXES + URDF_SUFFIXES)
+
+
+def is_urdf(path: str | PathLike[str]) -> bool:
+    """True when ``path`` names a URDF file (by its suffix), which ``load_arm`` imports with its servo file."""
+    return Path(path).suffix.lower() in URDF_SUFFIXES
 
 
 def resolve_arm(name_or_path: str | PathLike[str]) -> Path:
@@ -114,24 +118,6 @@ def resolve_arm(name_or_path: str | PathLike[str]) -> Path:
             return candidate
     known = ", ".join(list_arms()) or "none found"
     raise ConfigError(f"unknown arm {name!r}; known arms: {known} (or give a .toml or .urdf path)", key="arm")
-
-
-def load_arm(name_or_path: str | PathLike[str], *, base: str | None = None, tip: str | None = None) -> Arm:
-    """Load an arm description.
-
-    ``name_or_path`` is a bundled arm name (see :func:`list_arms`), a ``.toml`` file in the
-    schema of this module, or a ``.urdf`` file with its servo file beside it (``base`` and
-    ``tip`` name the chain's end links when the URDF is ambiguous; see :mod:`retarget.arm.urdf`).
-    Raises :class:`~retarget.errors.ConfigError`.
-    """
-    path = resolve_arm(name_or_path)
-    if path.suffix.lower() in _URDF_SUFFIXES:
-        from retarget.arm.urdf import load_urdf_arm
-
-        return load_urdf_arm(path, base=base, tip=tip)
-    if base is not None or tip is not None:
-        raise ConfigError("base/tip only apply to a URDF file", path=path, key="base" if base else "tip")
-    return ArmFileReader(path).arm(read_toml(path))
 
 
 def read_toml(path: Path) -> dict[str, Any]:
@@ -317,8 +303,8 @@ class ArmFileReader:
             joints=joints,
             tool_xyz=tool_xyz,  # type: ignore[arg-type]
             tool_rpy=tool_rpy,
-            home_pose=home,
-            rest_pose=rest,
+            home=home,
+            rest=rest,
             baud=baud,
             gripper=gripper,
             mapping=self.mapping(t.get("mapping", {})),

@@ -16,12 +16,9 @@ thin wrappers over it.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
-
-if TYPE_CHECKING:
-    from retarget.arm.model import Arm
 
 __all__ = ["Chain", "fk", "fk_batch", "rpy_matrix", "matrix_rpy", "axis_angle_matrix", "transform"]
 
@@ -94,14 +91,24 @@ class Chain:
     - ``lower``/``upper``: ``(n_joints,)`` limits, radians.
     """
 
-    def __init__(self, arm: Arm):
-        self.n = arm.n_joints
-        self.origins = np.stack([transform(j.origin_xyz, j.origin_rpy) for j in arm.joints])
-        axes = np.array([j.axis for j in arm.joints], dtype=np.float64).reshape(self.n, 3)
-        self.axes = axes / np.linalg.norm(axes, axis=1, keepdims=True)
-        self.tool = transform(arm.tool_xyz, arm.tool_rpy)
-        self.lower = arm.lower
-        self.upper = arm.upper
+    def __init__(
+        self,
+        *,
+        origins: Sequence[tuple[Sequence[float], Sequence[float]]],
+        axes: Sequence[Sequence[float]],
+        tool: tuple[Sequence[float], Sequence[float]],
+        lower: np.ndarray,
+        upper: np.ndarray,
+    ):
+        """``origins``: each joint's URDF origin ``(xyz, rpy)`` (metres, radians); ``axes``: each joint's axis;
+        ``tool``: the tool point's ``(xyz, rpy)`` in the last child frame; ``lower``/``upper``: limits, radians."""
+        self.n = len(origins)
+        self.origins = np.stack([transform(xyz, rpy) for xyz, rpy in origins])
+        axes_array = np.array(axes, dtype=np.float64).reshape(self.n, 3)
+        self.axes = axes_array / np.linalg.norm(axes_array, axis=1, keepdims=True)
+        self.tool = transform(*tool)
+        self.lower = lower
+        self.upper = upper
 
     def _check(self, q: np.ndarray, what: str = "q") -> np.ndarray:
         q = np.asarray(q, dtype=np.float64)
@@ -140,7 +147,14 @@ class Chain:
         return T @ self.tool
 
 
-def fk(arm: Arm, q: np.ndarray | Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+class HasChain(Protocol):
+    """Anything with a precomputed :class:`Chain`: an :class:`~retarget.arm.model.Arm`."""
+
+    @property
+    def chain(self) -> Chain: ...
+
+
+def fk(arm: HasChain, q: np.ndarray | Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
     """Forward kinematics: ``(T_tool (4, 4), points (n_joints + 1, 3))``, base frame, metres.
 
     ``q`` is ``(n_joints,)`` radians (limits are not enforced here).  ``points`` holds
@@ -149,6 +163,6 @@ def fk(arm: Arm, q: np.ndarray | Sequence[float]) -> tuple[np.ndarray, np.ndarra
     return arm.chain.fk(q)
 
 
-def fk_batch(arm: Arm, Q: np.ndarray) -> np.ndarray:
+def fk_batch(arm: HasChain, Q: np.ndarray) -> np.ndarray:
     """Tool poses ``(n, 4, 4)`` of joint angles ``Q`` ``(n, n_joints)`` radians, base frame, metres."""
     return arm.chain.fk_batch(Q)

@@ -17,12 +17,11 @@ import enum
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
-if TYPE_CHECKING:
-    from retarget.arm.kinematics import Chain
+from retarget.arm.kinematics import Chain
 
 #: Servo models the arm descriptions may name; ``drivers.control_table`` holds their registers.
 SERVO_MODELS: tuple[str, ...] = ("XL430-W250", "XM430-W350", "XL330-M288", "XM540-W270")
@@ -86,8 +85,10 @@ class Arm:
     joints: tuple[Joint, ...]
     tool_xyz: Vec3  #: tool point in the last joint's child frame, metres
     tool_rpy: Vec3
-    home_pose: tuple[float, ...]  #: rad, one per joint
-    rest_pose: tuple[float, ...]  #: rad, one per joint (the "sleep" pose)
+    #: ``(n_joints,) float64`` home pose, radians (read-only; any sequence of floats is taken)
+    home: np.ndarray = field(compare=False)
+    #: ``(n_joints,) float64`` rest ("sleep") pose, radians (read-only; any sequence of floats is taken)
+    rest: np.ndarray = field(compare=False)
     baud: int = 1_000_000
     gripper: Gripper | None = None
     #: the raw ``[mapping]`` table, read and validated by retarget.mapping.config
@@ -99,10 +100,12 @@ class Arm:
 
     def __post_init__(self) -> None:
         n = len(self.joints)
-        if len(self.home_pose) != n or len(self.rest_pose) != n:
-            raise ValueError(
-                f"Expected home and rest poses of {n} angles, got {len(self.home_pose)} and {len(self.rest_pose)}"
-            )
+        for name in ("home", "rest"):
+            pose = np.array(getattr(self, name), dtype=np.float64)
+            if pose.shape != (n,):
+                raise ValueError(f"Expected a {name} pose of {n} angles, got shape {pose.shape}")
+            pose.flags.writeable = False
+            object.__setattr__(self, name, pose)
         for j in self.joints:
             if not j.lower < j.upper:
                 raise ValueError(f"Expected lower < upper for joint {j.name!r}, got {j.lower} and {j.upper}")
@@ -131,14 +134,14 @@ class Arm:
         return np.array([j.max_velocity for j in self.joints], dtype=np.float64)
 
     @property
-    def home(self) -> np.ndarray:
-        """``(n_joints,) float64`` home pose, radians."""
-        return np.array(self.home_pose, dtype=np.float64)
+    def home_pose(self) -> tuple[float, ...]:
+        """The home pose as a tuple of radians: an old name of :attr:`home`, kept for now."""
+        return tuple(self.home.tolist())
 
     @property
-    def rest(self) -> np.ndarray:
-        """``(n_joints,) float64`` rest (sleep) pose, radians."""
-        return np.array(self.rest_pose, dtype=np.float64)
+    def rest_pose(self) -> tuple[float, ...]:
+        """The rest pose as a tuple of radians: an old name of :attr:`rest`, kept for now."""
+        return tuple(self.rest.tolist())
 
     @property
     def servo_ids(self) -> tuple[int, ...]:
@@ -153,9 +156,13 @@ class Arm:
         """The precomputed kinematic chain (constant transforms), built once per arm."""
         chain = self._cache.get("chain")
         if chain is None:
-            from retarget.arm.kinematics import Chain
-
-            chain = self._cache["chain"] = Chain(self)
+            chain = self._cache["chain"] = Chain(
+                origins=[(j.origin_xyz, j.origin_rpy) for j in self.joints],
+                axes=[j.axis for j in self.joints],
+                tool=(self.tool_xyz, self.tool_rpy),
+                lower=self.lower,
+                upper=self.upper,
+            )
         return chain
 
     def fk(self, q: np.ndarray | Sequence[float]) -> tuple[np.ndarray, np.ndarray]:

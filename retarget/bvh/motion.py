@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from retarget.bvh import skeleton
+import retarget.bvh.skeleton as skeleton
 from retarget.bvh.fk import Pose, forward_kinematics
 
 

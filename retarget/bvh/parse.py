@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from retarget.bvh import numbers as bvh_numbers
+import retarget.bvh.numbers as bvh_numbers
 from retarget.bvh.motion import ChannelLayout, EndSite, Motion
 from retarget.errors import BvhError
 

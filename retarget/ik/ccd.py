@@ -52,14 +52,11 @@ import math
 import random
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from retarget.errors import ConfigError
-
-if TYPE_CHECKING:
-    from retarget.arm.model import Arm
+from retarget.arm.model import Arm
+from retarget.errors import ConfigError, require_count, require_positive
 
 __all__ = ["IKResult", "CCDSolver", "SweepOrder", "Weighting", "solve_ik", "joint_weights"]
 
@@ -210,14 +207,14 @@ class CCDSolver:
     ):
         self.arm = arm
         n = self.n = arm.n_joints
-        self.tolerance = _positive(tolerance, "tolerance")
-        self.max_iterations = _count(max_iterations, "max_iterations")
+        self.tolerance = require_positive(tolerance, "tolerance")
+        self.max_iterations = require_count(max_iterations, "max_iterations")
         self.weights = joint_weights(n, weights, exponent=weight_exponent)
-        self.orientation_weight = _positive(orientation_weight, "orientation_weight", zero=True)
-        self.orientation_tolerance = _positive(orientation_tolerance, "orientation_tolerance")
-        self.restarts = _count(restarts, "restarts", zero=True)
-        self.local_restarts = _count(local_restarts, "local_restarts", zero=True)
-        self.perturbation = _positive(perturbation, "perturbation")
+        self.orientation_weight = require_positive(orientation_weight, "orientation_weight", zero=True)
+        self.orientation_tolerance = require_positive(orientation_tolerance, "orientation_tolerance")
+        self.restarts = require_count(restarts, "restarts", zero=True)
+        self.local_restarts = require_count(local_restarts, "local_restarts", zero=True)
+        self.perturbation = require_positive(perturbation, "perturbation")
         if not 0 < stall_ratio < 1:
             raise ConfigError("stall_ratio must lie in (0, 1)", key="stall_ratio", value=stall_ratio)
         self.stall_ratio = float(stall_ratio)
@@ -231,7 +228,7 @@ class CCDSolver:
         except ValueError:
             names = ", ".join(o.value for o in SweepOrder)
             raise ConfigError(f"unknown sweep order; expected one of {names}", key="order", value=order) from None
-        self.max_step = None if max_step is None else _positive(max_step, "max_step")
+        self.max_step = None if max_step is None else require_positive(max_step, "max_step")
         self.lower = tuple(float(j.lower) for j in arm.joints)
         self.upper = tuple(float(j.upper) for j in arm.joints)
         self._lo, self._hi = self.lower, self.upper  # the bounds of the current solve
@@ -249,7 +246,9 @@ class CCDSolver:
         lengths = [math.dist((0, 0, 0), jt[0]) for jt in joints[1:]] + [math.dist((0, 0, 0), self._tool)]
         self.reach = sum(lengths)
         self.base_pivot = tuple(map(float, arm.joints[0].origin_xyz))
-        self.short_lever = 0.2 * self.reach if short_lever is None else _positive(short_lever, "short_lever", zero=True)
+        self.short_lever = (
+            0.2 * self.reach if short_lever is None else require_positive(short_lever, "short_lever", zero=True)
+        )
         self._lever2 = self.short_lever**2
         # scratch buffers, reused by every solve (a solver is not thread-safe)
         self._px = [0.0] * n
@@ -352,11 +351,15 @@ class CCDSolver:
         if step is None:
             self._lo, self._hi = lower, upper
         else:  # a trust region around q0: no joint moves more than `step` in this solve
-            step = _positive(step, "max_step")
+            step = require_positive(step, "max_step")
             self._lo = tuple(lo if v - step < lo else v - step for v, lo in zip(q, lower, strict=True))
             self._hi = tuple(hi if v + step > hi else v + step for v, hi in zip(q, upper, strict=True))
-        tol = self.tolerance if tolerance is None else _positive(tolerance, "tolerance")
-        budget = self.max_iterations if max_iterations is None else _count(max_iterations, "max_iterations", zero=True)
+        tol = self.tolerance if tolerance is None else require_positive(tolerance, "tolerance")
+        budget = (
+            self.max_iterations
+            if max_iterations is None
+            else require_count(max_iterations, "max_iterations", zero=True)
+        )
         if rotation is not None:
             return self._solve_pose(tx, ty, tz, _rotation(rotation), q, tol, budget)
         tol2 = tol * tol
@@ -756,7 +759,7 @@ def solve_ik(
             seed=seed,
         )
     if q0 is None:
-        q0 = arm.home_pose
+        q0 = arm.home
     return solver.solve(target, q0, rotation, tolerance=tolerance, max_iterations=max_iterations, max_step=max_step)
 
 
@@ -839,16 +842,3 @@ def _rotation(value: np.ndarray) -> tuple[tuple[float, ...], ...]:
     if not np.all(np.isfinite(r)) or not np.allclose(r @ r.T, np.eye(3), atol=1e-6) or np.linalg.det(r) < 0:
         raise ValueError("Expected rotation to be a proper rotation matrix (orthonormal, det +1)")
     return tuple(tuple(row) for row in r.tolist())
-
-
-def _positive(value: float, key: str, *, zero: bool = False) -> float:
-    ok = isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
-    if not ok or value < 0 or (value == 0 and not zero):
-        raise ConfigError(f"{key} must be a finite number {'>=' if zero else '>'} 0", key=key, value=value)
-    return float(value)
-
-
-def _count(value: int, key: str, *, zero: bool = False) -> int:
-    if not isinstance(value, int) or isinstance(value, bool) or value < (0 if zero else 1):
-        raise ConfigError(f"{key} must be an integer {'>=' if zero else '>'} 0", key=key, value=value)
-    return value

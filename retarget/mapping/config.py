@@ -32,14 +32,11 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, fields, replace
 from os import PathLike
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from retarget.errors import ConfigError
-
-if TYPE_CHECKING:
-    from retarget.mapping.geometry import ArmGeometry
 
 __all__ = ["Axis", "MappingConfig", "Side"]
 
@@ -89,7 +86,8 @@ class MappingConfig:
     #: the robot's forward in its base frame: AUTO = where the arm points at home; or +x, -x, +y, -y
     robot_forward: Axis = Axis.AUTO
     arm_scale: float = 0.4  #: the human's full arm length maps to this fraction of the robot's reach
-    origin: tuple[float, float, float] | None = None  #: where the shoulder lands; None = default_origin()
+    #: where the shoulder lands; None = ``retarget.mapping.geometry.default_origin``
+    origin: tuple[float, float, float] | None = None
     max_reach: float = 0.95  #: outer radius of the workspace shell, fraction of reach
     min_reach: float = 0.2  #: inner radius, fraction of reach
     floor: float = 0.03  #: lowest target z, metres above the base frame origin
@@ -141,14 +139,6 @@ class MappingConfig:
         """A copy with the given fields replaced (``None`` values skipped), validated."""
         values = {k: _convert(k, v, key=f"mapping.{k}", path=None) for k, v in overrides.items() if v is not None}
         return replace(self, **values)
-
-    def default_origin(self, geometry: ArmGeometry) -> np.ndarray:
-        """``(3,)`` metres: 0.3 reach in front of and 0.38 reach above the shoulder pivot.
-
-        With the default ``arm_scale`` the human arm's sphere then fits inside the
-        workspace shell, and a hanging arm lands just above the floor in front of the robot.
-        """
-        return geometry.pivot + geometry.reach * (geometry.basis(self.robot_forward) @ np.array([0.3, 0.0, 0.38]))
 
 
 def _convert(name: str, raw: Any, *, key: str, path: str | PathLike[str] | None) -> Any:

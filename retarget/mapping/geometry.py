@@ -35,18 +35,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 
+from retarget.arm.kinematics import axis_angle_matrix, rpy_matrix
+from retarget.arm.model import Arm
+from retarget.bvh.motion import Motion
 from retarget.errors import ConfigError
 from retarget.mapping.config import Axis, MappingConfig
 
-if TYPE_CHECKING:
-    from retarget.arm.model import Arm
-    from retarget.bvh.motion import Motion
-
 __all__ = [
+    "default_origin",
     "Targets",
     "Workspace",
     "arm_geometry",
@@ -77,6 +76,16 @@ class ArmGeometry:
         f = self.forward if robot_forward is Axis.AUTO else robot_forward.vector
         up = np.array([0.0, 0.0, 1.0])
         return np.stack([f, np.cross(up, f), up], axis=-1)
+
+
+def default_origin(config: MappingConfig, geometry: ArmGeometry) -> np.ndarray:
+    """``(3,)`` metres, base frame: where the shoulder lands when ``config.origin`` is None.
+
+    0.3 reach in front of and 0.38 reach above the shoulder pivot: with the default ``arm_scale`` the
+    human arm's sphere then fits inside the workspace shell, and a hanging arm lands just above the
+    floor in front of the robot.
+    """
+    return geometry.pivot + geometry.reach * (geometry.basis(config.robot_forward) @ np.array([0.3, 0.0, 0.38]))
 
 
 def arm_geometry(arm: Arm) -> ArmGeometry:
@@ -161,8 +170,6 @@ def ik_weights(arm: Arm, config: MappingConfig) -> np.ndarray:
 
 def _joint_rotations(arm: Arm, q: np.ndarray) -> list[np.ndarray]:
     """Base-frame rotation of each joint's child frame at ``q``, before its own rotation (so ``R @ axis`` is world)."""
-    from retarget.arm.kinematics import axis_angle_matrix, rpy_matrix
-
     R = np.eye(3)
     out = []
     for joint, angle in zip(arm.joints, q, strict=True):
@@ -430,7 +437,7 @@ def retarget_targets(motion: Motion, arm: Arm, config: MappingConfig | None = No
         raise ValueError(f"Expected a human arm of positive length, got {human}")
     geometry = arm_geometry(arm)
     scale = config.arm_scale * geometry.reach / float(human)
-    origin = np.asarray(config.origin, dtype=np.float64) if config.origin else config.default_origin(geometry)
+    origin = np.asarray(config.origin, dtype=np.float64) if config.origin else default_origin(config, geometry)
     basis = geometry.basis(config.robot_forward)
     raw = map_points(shoulder, wrist, frames, scale=scale, origin=origin, basis=basis)
     rotations = None

@@ -84,7 +84,7 @@ def test_valid_file_loads_in_radians(tmp_path):
 def test_rest_defaults_to_home_and_gripper_is_optional(tmp_path):
     text = edited("rest = [0, 10]\n", "").split("[gripper]")[0]
     arm = load_arm(write(tmp_path, text))
-    assert arm.rest_pose == arm.home_pose and arm.gripper is None and arm.mapping == {}
+    assert np.array_equal(arm.rest, arm.home) and arm.gripper is None and arm.mapping == {}
 
 
 BAD = [

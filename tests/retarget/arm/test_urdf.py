@@ -127,7 +127,7 @@ def test_fixed_joints_with_rotations_fold_into_the_next_origin_and_the_tool(tmp_
         @ tf((0.1, 0, 0), (0, 0.5, 0))
     )
     np.testing.assert_allclose(arm.fk(q)[0], expected, atol=1e-12)
-    assert arm.home_pose == (0.0, 0.0)
+    assert arm.home.tolist() == [0.0, 0.0]
 
 
 def test_cycle_is_named(tmp_path):

@@ -175,12 +175,12 @@ def test_weight_errors(weights, exponent, message):
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
-        ({"tolerance": 0}, "tolerance must be a finite number > 0"),
-        ({"max_iterations": 0}, "max_iterations must be an integer > 0"),
+        ({"tolerance": 0}, "tolerance: Expected a finite number > 0 (got 0)"),
+        ({"max_iterations": 0}, "max_iterations: Expected an integer >= 1 (got 0)"),
         ({"stall_ratio": 1.0}, "stall_ratio must lie in (0, 1)"),
         ({"accel_ratio": 1.0}, "accel_ratio must lie in [0, 1)"),
-        ({"max_step": -0.1}, "max_step must be a finite number > 0"),
-        ({"restarts": -1}, "restarts must be an integer >= 0"),
+        ({"max_step": -0.1}, "max_step: Expected a finite number > 0 (got -0.1)"),
+        ({"restarts": -1}, "restarts: Expected an integer >= 0 (got -1)"),
         ({"order": "random"}, "unknown sweep order; expected one of base-first, tip-first"),
     ],
     ids=["tolerance", "budget", "stall", "accel", "max-step", "restarts", "order"],

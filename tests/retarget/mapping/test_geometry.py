@@ -16,6 +16,7 @@ from retarget.mapping.geometry import (
     Workspace,
     arm_geometry,
     body_frames,
+    default_origin,
     ik_weights,
     retarget_targets,
 )
@@ -139,7 +140,7 @@ def test_t_pose_arm_points_sideways_on_the_robot(arm, side, forward, sign):
     config = MappingConfig.from_table({"side": side, "forward": forward, "arm_scale": 0.3})
     targets = targets_of(t_pose(), arm, config)
     g = arm_geometry(arm)
-    origin = config.default_origin(g)
+    origin = default_origin(config, g)
     expected = origin + np.array([0.0, sign * 0.3 * g.reach, 0.0])
     np.testing.assert_allclose(targets.raw, np.broadcast_to(expected, (3, 3)), atol=1e-9)
 
@@ -286,7 +287,7 @@ def test_the_robot_forward_comes_from_the_home_pose():
     np.testing.assert_array_equal(g.forward, [-1.0, 0.0, 0.0])
     np.testing.assert_array_equal(g.basis(), [[-1, 0, 0], [0, -1, 0], [0, 0, 1]])
     np.testing.assert_array_equal(g.basis(Axis.PY)[:, 0], [0, 1, 0])
-    origin = MappingConfig().default_origin(g)
+    origin = default_origin(MappingConfig(), g)
     assert origin[0] < g.pivot[0]  # in front of the Koch is behind its base x axis
     # T-pose right arm: the robot's right, whichever way it faces
     targets = targets_of(t_pose(), koch, MappingConfig(arm_scale=0.3))
