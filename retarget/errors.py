@@ -43,8 +43,9 @@ class BvhError(RetargetError, ValueError):
 class ConfigError(RetargetError, ValueError):
     """An arm description, mapping or option with a bad value.
 
-    ``str(exc)`` is ``"path: key: message (got value)"``; ``key`` is a key path
-    such as ``joints[2].limits``.
+    ``str(exc)`` is ``"path: key: message (got value)"``; ``key`` is a key path in the file
+    such as ``joints[2].limits``, or, without a path, the name of the field or parameter
+    (``rate``, ``mapping.floor``): the library speaks in fields, and only the CLI knows its flags.
     """
 
     def __init__(
@@ -59,9 +60,18 @@ class ConfigError(RetargetError, ValueError):
         self.path = None if path is None else str(path)
         self.key = key
         self.value = None if value is _UNSET else value
+        self._value = value  # _UNSET when no value was given, so a copy keeps "(got ...)" off too
         parts = [p for p in (self.path, key) if p]
         text = message if value is _UNSET else f"{message} (got {value!r})"
         super().__init__(": ".join([*parts, text]))
+
+    def with_key(self, key: str) -> ConfigError:
+        """The same error (message, path, value) about ``key``: how the CLI names the option that set a field.
+
+        >>> ConfigError("Expected a tick rate > 0 Hz", key="rate", value=0.0).with_key("--rate")
+        ConfigError('--rate: Expected a tick rate > 0 Hz (got 0.0)')
+        """
+        return ConfigError(self.message, path=self.path, key=key, value=self._value)
 
 
 class BusError(RetargetError, OSError):
@@ -77,7 +87,7 @@ class BusError(RetargetError, OSError):
         super().__init__(f"{prefix}{message}")
 
     def __str__(self) -> str:  # OSError's own __str__ would prepend errno fields
-        return self.args[0]
+        return str(self.args[0])
 
 
 def require_positive(value: object, key: str, *, zero: bool = False, inf: bool = False) -> float:
@@ -92,8 +102,7 @@ def require_positive(value: object, key: str, *, zero: bool = False, inf: bool =
     ...
     retarget.errors.ConfigError: tolerance: Expected a finite number > 0 (got 0)
     """
-    number = isinstance(value, int | float) and not isinstance(value, bool)
-    x = float(value) if number else math.nan  # type: ignore[arg-type]
+    x = float(value) if isinstance(value, int | float) and not isinstance(value, bool) else math.nan
     finite = math.isfinite(x) or (inf and x == math.inf)
     if not finite or x < 0 or (x == 0 and not zero):
         bound = ">= 0" if zero else "> 0"

@@ -1,7 +1,8 @@
 """The arm model: joints, limits, servos and poses, read from TOML or imported from a URDF, and its kinematics.
 
+- :mod:`~retarget.arm.load`: :func:`load_arm`, the one entry point: a bundled name, a TOML file or a URDF;
 - :mod:`~retarget.arm.model`: :class:`Arm`, :class:`Joint`, :class:`Servo`, :class:`Gripper` (frozen specs);
-- :mod:`~retarget.arm.config`: :func:`load_arm`, the TOML arm files and the bundled arms;
+- :mod:`~retarget.arm.config`: the TOML arm files (schema and validating reader) and the bundled arms;
 - :mod:`~retarget.arm.urdf`: URDF import of one chain, with its servo file;
 - :mod:`~retarget.arm.kinematics`: forward kinematics, one pose or a batch, and the rotation helpers.
 """
@@ -27,9 +28,9 @@ __all__ = [
     "arm_dirs",
     "axis_angle_matrix",
     "find_chain",
-    "is_urdf",
     "fk",
     "fk_batch",
+    "is_urdf",
     "list_arms",
     "load_arm",
     "load_urdf_arm",

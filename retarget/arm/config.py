@@ -59,7 +59,9 @@ import tomllib
 from collections.abc import Iterable, Mapping
 from os import PathLike
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeGuard
+
+import numpy as np
 
 from retarget.arm.model import SERVO_MODELS, Arm, Gripper, Joint, JointType, Servo
 from retarget.errors import ConfigError
@@ -133,7 +135,7 @@ def read_toml(path: Path) -> dict[str, Any]:
         raise ConfigError(f"cannot read: {exc.strerror or exc}", path=path) from exc
 
 
-def _is_number(v: object) -> bool:
+def _is_number(v: object) -> TypeGuard[int | float]:
     return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
 
 
@@ -153,7 +155,7 @@ class ArmFileReader:
             return ConfigError(message, path=self.path, key=key)
         return ConfigError(message, path=self.path, key=key, value=value)
 
-    def table(self, value: object, key: str, allowed: Iterable[str], required: Iterable[str] = ()) -> Mapping:
+    def table(self, value: object, key: str, allowed: Iterable[str], required: Iterable[str] = ()) -> Mapping[str, Any]:
         if not isinstance(value, Mapping):
             raise self.error("expected a table", key, value)
         allowed = set(allowed)
@@ -184,10 +186,19 @@ class ArmFileReader:
             raise self.error("expected a non-empty string", key, value)
         return value
 
-    def vector(self, value: object, key: str, n: int = 3) -> tuple[float, ...]:
+    def _numbers(self, value: object, key: str, n: int) -> list[int | float]:
+        """``value`` itself when it is a list of ``n`` finite numbers (as written: ints stay ints)."""
         if not isinstance(value, list) or len(value) != n or not all(_is_number(v) for v in value):
             raise self.error(f"expected a list of {n} numbers", key, value)
-        return tuple(float(v) for v in value)
+        return value
+
+    def vector(self, value: object, key: str, n: int = 3) -> tuple[float, ...]:
+        return tuple(float(v) for v in self._numbers(value, key, n))
+
+    def xyz(self, value: object, key: str) -> tuple[float, float, float]:
+        """A point or offset: a list of 3 numbers (metres)."""
+        x, y, z = self.vector(value, key)
+        return (x, y, z)
 
     def degrees3(self, value: object, key: str) -> tuple[float, float, float]:
         x, y, z = self.vector(value, key)
@@ -234,21 +245,24 @@ class ArmFileReader:
         lo, hi = self.limits(t["limits"], f"{key}.limits")
         return Gripper(name=name, servo=servo, lower=lo, upper=hi)
 
-    def poses(self, value: object, joints: tuple[Joint, ...], key: str = "poses") -> tuple[tuple, tuple]:
+    def poses(
+        self, value: object, joints: tuple[Joint, ...], key: str = "poses"
+    ) -> tuple[tuple[float, ...], tuple[float, ...]]:
         t = self.table(value, key, _POSE_KEYS, ("home",))
         home = self.pose(t["home"], f"{key}.home", joints)
         rest = self.pose(t["rest"], f"{key}.rest", joints) if "rest" in t else home
         return home, rest
 
     def pose(self, value: object, key: str, joints: tuple[Joint, ...]) -> tuple[float, ...]:
-        pose = tuple(math.radians(v) for v in self.vector(value, key, len(joints)))
+        raw = self._numbers(value, key, len(joints))
+        pose = tuple(math.radians(float(v)) for v in raw)
         for i, (a, j) in enumerate(zip(pose, joints, strict=True)):
             if not j.lower - 1e-9 <= a <= j.upper + 1e-9:
                 raise self.error(
                     f"outside the limits of joint {j.name!r} "
                     f"[{math.degrees(j.lower):g}, {math.degrees(j.upper):g}] deg",
                     f"{key}[{i}]",
-                    value[i],
+                    raw[i],
                 )
         return tuple(min(max(a, j.lower), j.upper) for a, j in zip(pose, joints, strict=True))
 
@@ -266,7 +280,7 @@ class ArmFileReader:
         lo, hi = self.limits(t["limits"], f"{key}.limits")
         return Joint(
             name=name,
-            origin_xyz=self.vector(t["xyz"], f"{key}.xyz"),
+            origin_xyz=self.xyz(t["xyz"], f"{key}.xyz"),
             origin_rpy=self.degrees3(t.get("rpy", [0.0, 0.0, 0.0]), f"{key}.rpy"),
             axis=self.axis(t["axis"], f"{key}.axis"),
             lower=lo,
@@ -293,7 +307,7 @@ class ArmFileReader:
         tool = self.table(t.get("tool", {}), "tool", _TOOL_KEYS)
         if "link" in tool:
             self.string(tool["link"], "tool.link")
-        tool_xyz = self.vector(tool.get("xyz", [0.0, 0.0, 0.0]), "tool.xyz")
+        tool_xyz = self.xyz(tool.get("xyz", [0.0, 0.0, 0.0]), "tool.xyz")
         tool_rpy = self.degrees3(tool.get("rpy", [0.0, 0.0, 0.0]), "tool.rpy")
         home, rest = self.poses(t["poses"], joints)
         gripper = self.gripper(t["gripper"]) if "gripper" in t else None
@@ -301,10 +315,10 @@ class ArmFileReader:
             name=name,
             title=title,
             joints=joints,
-            tool_xyz=tool_xyz,  # type: ignore[arg-type]
+            tool_xyz=tool_xyz,
             tool_rpy=tool_rpy,
-            home=home,
-            rest=rest,
+            home=np.array(home, dtype=np.float64),
+            rest=np.array(rest, dtype=np.float64),
             baud=baud,
             gripper=gripper,
             mapping=self.mapping(t.get("mapping", {})),

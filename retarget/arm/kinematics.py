@@ -23,7 +23,7 @@ import numpy as np
 __all__ = ["Chain", "fk", "fk_batch", "rpy_matrix", "matrix_rpy", "axis_angle_matrix", "transform"]
 
 
-def rpy_matrix(rpy: Sequence[float]) -> np.ndarray:
+def rpy_matrix(rpy: Sequence[float] | np.ndarray) -> np.ndarray:
     """``(3, 3)`` rotation of URDF roll-pitch-yaw ``rpy`` (radians): ``Rz(y) @ Ry(p) @ Rx(r)``."""
     r, p, y = (float(v) for v in rpy)
     cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
@@ -72,7 +72,7 @@ def axis_angle_matrix(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
     return out
 
 
-def transform(xyz: Sequence[float], rpy: Sequence[float]) -> np.ndarray:
+def transform(xyz: Sequence[float] | np.ndarray, rpy: Sequence[float] | np.ndarray) -> np.ndarray:
     """``(4, 4)`` homogeneous transform of a URDF origin (metres, radians)."""
     T = np.eye(4)
     T[:3, :3] = rpy_matrix(rpy)
@@ -110,11 +110,11 @@ class Chain:
         self.lower = lower
         self.upper = upper
 
-    def _check(self, q: np.ndarray, what: str = "q") -> np.ndarray:
-        q = np.asarray(q, dtype=np.float64)
-        if q.shape[-1:] != (self.n,):
-            raise ValueError(f"Expected {what} of shape (..., {self.n}) for {self.n} joints, got {q.shape}")
-        return q
+    def _check(self, q: np.ndarray | Sequence[float], what: str = "q") -> np.ndarray:
+        array = np.asarray(q, dtype=np.float64)
+        if array.shape[-1:] != (self.n,):
+            raise ValueError(f"Expected {what} of shape (..., {self.n}) for {self.n} joints, got {array.shape}")
+        return array
 
     def fk(self, q: np.ndarray | Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
         """``(T_tool (4, 4), points (n_joints + 1, 3))`` for ``q`` ``(n_joints,)`` radians; base frame, metres."""
@@ -144,7 +144,8 @@ class Chain:
             T = T @ self.origins[i]
             rot[:, :3, :3] = axis_angle_matrix(self.axes[i], Q[:, i])
             T = T @ rot
-        return T @ self.tool
+        tool: np.ndarray = T @ self.tool
+        return tool
 
 
 class HasChain(Protocol):

@@ -14,7 +14,7 @@ frozen: build them with ``retarget.load_arm``.
 from __future__ import annotations
 
 import enum
-from collections.abc import Mapping, Sequence
+from collections.abc import Hashable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -79,15 +79,29 @@ class Gripper:
 
 @dataclass(frozen=True)
 class Arm:
-    """A serial arm.  See the module docstring; construct with ``retarget.load_arm``."""
+    """A serial arm of revolute joints, base to tool point: radians and metres, frozen.
+
+    Load one with :func:`~retarget.arm.load.load_arm`.  ``joints`` run base to tip; ``tool_xyz``/
+    ``tool_rpy`` place the tool point in the last joint's child frame (metres, radians); ``home`` and
+    ``rest`` are ``(n_joints,)`` float64 radians, read-only (the constructor converts any sequence of
+    floats and raises ``ValueError`` for a wrong length, as for a joint with ``lower >= upper``).
+    ``lower``/``upper``/``max_velocity`` give the limits as ``(n_joints,)`` float64 (radians, rad/s).
+
+    >>> from retarget.arm.load import load_arm
+    >>> arm = load_arm("wx250s")
+    >>> arm.n_joints, arm.home.flags.writeable, arm.within_limits(arm.rest)
+    (6, False, True)
+    >>> arm.lower.shape, arm.servo_ids[:3]
+    ((6,), (1, 2, 3))
+    """
 
     name: str
     joints: tuple[Joint, ...]
     tool_xyz: Vec3  #: tool point in the last joint's child frame, metres
     tool_rpy: Vec3
-    #: ``(n_joints,) float64`` home pose, radians (read-only; any sequence of floats is taken)
+    #: ``(n_joints,) float64`` home pose, radians (read-only; converted from any sequence of floats at run time)
     home: np.ndarray = field(compare=False)
-    #: ``(n_joints,) float64`` rest ("sleep") pose, radians (read-only; any sequence of floats is taken)
+    #: ``(n_joints,) float64`` rest ("sleep") pose, radians (read-only; converted like ``home``)
     rest: np.ndarray = field(compare=False)
     baud: int = 1_000_000
     gripper: Gripper | None = None
@@ -95,8 +109,8 @@ class Arm:
     mapping: Mapping[str, Any] = field(default_factory=dict)
     source: Path | None = None  #: the file it was loaded from
     title: str = ""  #: human name, e.g. "WidowX-250 6DOF"
-    #: private per-instance cache (precomputed kinematic chain, IK solvers); not part of equality
-    _cache: dict[str, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
+    #: private per-instance cache (precomputed kinematic chain, IK solvers by their knobs); not part of equality
+    _cache: dict[Hashable, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         n = len(self.joints)
@@ -166,17 +180,28 @@ class Arm:
         return chain
 
     def fk(self, q: np.ndarray | Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
-        """Forward kinematics of joint angles ``q`` ``(n_joints,)`` radians.
+        """Forward kinematics of joint angles ``q`` ``(n_joints,)`` radians (the limits are not enforced).
 
-        Returns ``(T_tool, points)``: the ``(4, 4)`` pose of the tool point in the base
-        frame (metres) and ``(n_joints + 1, 3)`` positions of every joint origin then the
-        tool point, base frame, metres (for drawing).  See ``retarget.kinematics.fk``.
+        Returns ``(T_tool, points)``: ``T_tool`` ``(4, 4)`` float64, the homogeneous pose of the
+        tool point in the base frame (metres), and ``points`` ``(n_joints + 1, 3)`` float64, every
+        joint origin base to tip then the tool point, base frame, metres (for drawing).  Raises
+        ``ValueError`` when ``q`` is not ``(n_joints,)``; many poses at once:
+        :func:`retarget.arm.kinematics.fk_batch`.
+
+        >>> from retarget.arm.load import load_arm
+        >>> arm = load_arm("wx250s")
+        >>> T, points = arm.fk(arm.home)
+        >>> T[:3, 3].round(4).tolist()  # the tool point at home, metres
+        [0.4583, 0.0, 0.3607]
+        >>> points.shape
+        (7, 3)
         """
         return self.chain.fk(q)
 
     def clip(self, q: np.ndarray) -> np.ndarray:
         """``q`` clipped to the joint limits, ``(..., n_joints)`` radians."""
-        return np.clip(q, self.lower, self.upper)
+        clipped: np.ndarray = np.clip(q, self.lower, self.upper)
+        return clipped
 
     def within_limits(self, q: np.ndarray, *, atol: float = 0.0) -> bool:
         """True when every angle of ``q`` ``(..., n_joints)`` lies inside the limits (plus ``atol`` rad)."""

@@ -93,9 +93,8 @@ class UrdfModel:
         return ConfigError(message, path=self.path, key=key, value=value)
 
 
-def _floats(text: str | None, n: int, default: tuple[float, ...], where: str, model_path: Path) -> tuple:
-    if text is None:
-        return default
+def _floats(text: str, n: int, where: str, model_path: Path) -> tuple[float, ...]:
+    """The ``n`` finite numbers of an attribute's ``text``, else a ConfigError naming ``where``."""
     try:
         values = tuple(float(v) for v in text.split())
     except ValueError:
@@ -103,6 +102,32 @@ def _floats(text: str | None, n: int, default: tuple[float, ...], where: str, mo
     if len(values) != n or not all(math.isfinite(v) for v in values):
         raise ConfigError(f"expected {n} numbers", path=model_path, key=where, value=text)
     return values
+
+
+def _vec3(
+    text: str | None, default: tuple[float, float, float], where: str, model_path: Path
+) -> tuple[float, float, float]:
+    """Three numbers from an attribute's ``text``, ``default`` when the attribute is absent."""
+    if text is None:
+        return default
+    x, y, z = _floats(text, 3, where, model_path)
+    return (x, y, z)
+
+
+def _scalar(text: str | None, where: str, model_path: Path) -> float | None:
+    """One number from an attribute's ``text``, None when the attribute is absent."""
+    return None if text is None else _floats(text, 1, where, model_path)[0]
+
+
+def _link(el: ET.Element, role: str, key: str, links: set[str], model_path: Path) -> str:
+    """The link named by the ``<parent>`` or ``<child>`` (``role``) of the joint ``el``: present and defined."""
+    tag = el.find(role)
+    link = tag.get("link") if tag is not None else None
+    if not link:
+        raise ConfigError(f"missing <{role} link=...>", path=model_path, key=f"{key}.{role}")
+    if link not in links:
+        raise ConfigError(f"{role} link {link!r} is not defined", path=model_path, key=f"{key}.{role}", value=link)
+    return link
 
 
 def parse_urdf(path: str | PathLike[str]) -> UrdfModel:
@@ -133,25 +158,21 @@ def parse_urdf(path: str | PathLike[str]) -> UrdfModel:
         key = f"joint[{name}]"
         if name in joints:
             raise ConfigError("duplicate joint name", path=path, key=key)
-        parent_el, child_el = el.find("parent"), el.find("child")
-        parent = parent_el.get("link") if parent_el is not None else None
-        child = child_el.get("link") if child_el is not None else None
-        for role, link in (("parent", parent), ("child", child)):
-            if not link:
-                raise ConfigError(f"missing <{role} link=...>", path=path, key=f"{key}.{role}")
-            if link not in link_set:
-                raise ConfigError(f"{role} link {link!r} is not defined", path=path, key=f"{key}.{role}", value=link)
+        parent = _link(el, "parent", key, link_set, path)
+        child = _link(el, "child", key, link_set, path)
         origin = el.find("origin")
-        xyz = _floats(origin.get("xyz") if origin is not None else None, 3, (0.0, 0.0, 0.0), f"{key}.origin.xyz", path)
-        rpy = _floats(origin.get("rpy") if origin is not None else None, 3, (0.0, 0.0, 0.0), f"{key}.origin.rpy", path)
+        xyz = _vec3(origin.get("xyz") if origin is not None else None, (0.0, 0.0, 0.0), f"{key}.origin.xyz", path)
+        rpy = _vec3(origin.get("rpy") if origin is not None else None, (0.0, 0.0, 0.0), f"{key}.origin.rpy", path)
         axis_el = el.find("axis")
-        axis = _floats(axis_el.get("xyz") if axis_el is not None else None, 3, (1.0, 0.0, 0.0), f"{key}.axis", path)
+        axis = _vec3(axis_el.get("xyz") if axis_el is not None else None, (1.0, 0.0, 0.0), f"{key}.axis", path)
         limit = el.find("limit")
-        lower = upper = velocity = None
+        lower: float | None = None
+        upper: float | None = None
+        velocity: float | None = None
         if limit is not None:
-            lower = _floats(limit.get("lower"), 1, (None,), f"{key}.limit.lower", path)[0]
-            upper = _floats(limit.get("upper"), 1, (None,), f"{key}.limit.upper", path)[0]
-            velocity = _floats(limit.get("velocity"), 1, (None,), f"{key}.limit.velocity", path)[0]
+            lower = _scalar(limit.get("lower"), f"{key}.limit.lower", path)
+            upper = _scalar(limit.get("upper"), f"{key}.limit.upper", path)
+            velocity = _scalar(limit.get("velocity"), f"{key}.limit.velocity", path)
         joint = UrdfJoint(name, el.get("type", ""), parent, child, xyz, rpy, axis, lower, upper, velocity)
         if child in parent_joint:
             other = parent_joint[child].name
@@ -185,7 +206,7 @@ def find_chain(model: UrdfModel, base: str | None = None, tip: str | None = None
     if base is None:
         roots = [link for link in model.links if link not in model.parent_joint]
         if len(roots) != 1:
-            raise model.error(f"cannot tell the base link: roots {', '.join(roots)}; give base=", key="base")
+            raise model.error(f"cannot tell the base link: roots {', '.join(roots)}; name one", key="base")
         base = roots[0]
     elif base not in model.links:
         raise model.error(f"no link named {base!r}; links: {', '.join(model.links)}", key="base", value=base)
@@ -198,7 +219,7 @@ def find_chain(model: UrdfModel, base: str | None = None, tip: str | None = None
                 leaves.append(link)
             stack.extend(below)
         if len(leaves) != 1:
-            raise model.error(f"cannot tell the tip link: leaves {', '.join(sorted(leaves))}; give tip=", key="tip")
+            raise model.error(f"cannot tell the tip link: leaves {', '.join(sorted(leaves))}; name one", key="tip")
         tip = leaves[0]
     elif tip not in model.links:
         raise model.error(f"no link named {tip!r}; links: {', '.join(model.links)}", key="tip", value=tip)
@@ -285,7 +306,7 @@ def load_urdf_arm(
                 name=uj.name,
                 origin_xyz=tuple(T[:3, 3].tolist()),
                 origin_rpy=matrix_rpy(T[:3, :3]),
-                axis=tuple(a / norm for a in uj.axis),
+                axis=(uj.axis[0] / norm, uj.axis[1] / norm, uj.axis[2] / norm),
                 lower=lower,
                 upper=upper,
                 max_velocity=velocity,
@@ -304,8 +325,8 @@ def load_urdf_arm(
         joints=joints_t,
         tool_xyz=tuple(pending[:3, 3].tolist()),
         tool_rpy=matrix_rpy(pending[:3, :3]),
-        home=home,
-        rest=rest,
+        home=np.array(home, dtype=np.float64),
+        rest=np.array(rest, dtype=np.float64),
         baud=reader.integer(data.get("baud", 1_000_000), "baud", 9600, 10_500_000),
         gripper=reader.gripper(data["gripper"]) if "gripper" in data else None,
         mapping=reader.mapping(data.get("mapping", {})),

@@ -11,9 +11,9 @@ The work is laid out for numpy, with frames on the last (contiguous) axis:
   whole-clip temporaries (megabytes each) would be page-faulted in afresh on
   every call, which costs more than the arithmetic;
 * per block, the local rotations of all joints are built in one go: one
-  :func:`~retarget.rotations.cos_sin_degrees` per group of joints sharing a
+  :func:`~retarget.bvh.rotations.cos_sin_degrees` per group of joints sharing a
   rotation order (usually one group), then the Euler product entry by entry
-  (:func:`~retarget.rotations.compose_entries`);
+  (:func:`~retarget.bvh.rotations.compose_entries`);
 * joints are then visited level by level (all joints at one depth together):
   per level one ``einsum`` for positions and one for world rotations.
 
@@ -33,6 +33,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TypeAlias
 
 import numpy as np
 
@@ -52,6 +53,10 @@ class Pose:
     end_sites: np.ndarray | None
     rotations: np.ndarray | None
 
+
+#: A group of joints sharing a rotation order: its axes (0-2), its rows among the rotating joints (a slice when
+#: all of them) and its angle columns ``(m, k')`` in ``channels`` (one row per rotation channel).
+_Group: TypeAlias = tuple[list[int], slice | np.ndarray, np.ndarray]
 
 #: Rotating joints times frames per block (see the module notes).
 BLOCK_ELEMENTS = 1 << 12
@@ -176,7 +181,8 @@ def _plan(
     by_level: list[list[int]] = [[] for _ in range(max(depth, default=-1) + 1)]
     for j in sorted(range(len(parent_list)), key=lambda j: (depth[j], not turns[j], j)):
         by_level[depth[j]].append(j)
-    slot, row = {}, {}  # joint -> position row, rotation row
+    slot: dict[int, int] = {}  # joint -> position row
+    row: dict[int, int] = {}  # joint -> rotation row
     for j in (j for level in by_level for j in level):
         slot[j] = len(slot)
         if turns[j]:
@@ -218,7 +224,7 @@ def _index(rows: list[int]) -> slice | np.ndarray:
 
 def _rotation_groups(
     joints: np.ndarray, channel_names: Sequence[Sequence[str]], first_columns: Sequence[int]
-) -> list[tuple[list[int], slice | np.ndarray, np.ndarray]]:
+) -> list[_Group]:
     """``joints`` grouped by rotation order: per group its axes, its rows in ``joints`` and its angle columns
     ``(m, k')`` (one row per rotation channel)."""
     groups: dict[str, tuple[list[int], list[list[int]]]] = {}
@@ -238,7 +244,7 @@ def _rotation_groups(
     ]
 
 
-def _local_rotations(groups: list, columns: np.ndarray, *, out: np.ndarray) -> None:
+def _local_rotations(groups: list[_Group], columns: np.ndarray, *, out: np.ndarray) -> None:
     """Write into ``out`` ``(3, 3, k, b)`` the local rotations of the grouped joints from ``columns`` ``(C, b)``:
     one trigonometry pass and one Euler product per rotation order."""
     for axes, where, cols in groups:

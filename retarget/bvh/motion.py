@@ -102,6 +102,11 @@ def _readonly(a: np.ndarray) -> np.ndarray:
 class Motion:
     """A BVH clip: skeleton, raw channels and cached FK.
 
+    Read one with :func:`~retarget.bvh.parse.load_bvh` or :func:`~retarget.bvh.parse.parse_bvh`.  The
+    constructor checks the shapes (``ValueError``); the arrays are kept read-only.  FK results
+    (:meth:`positions`, :meth:`end_site_positions`, :meth:`global_transforms`, :meth:`arm_points`) are
+    computed for all frames on first use, cached, and returned read-only.
+
     Attributes:
         joint_names: ROOT and JOINT names in file order (End Sites excluded).
         parents: ``(n_joints,)`` int, parent joint index, -1 for a root.
@@ -111,6 +116,13 @@ class Motion:
         channels: ``(n_frames, n_channels)`` float64, raw values in file order (degrees, file units).
         frame_time: seconds per frame.
         path: the file read, or None.
+
+    >>> from retarget.bvh.parse import DEMO_CLIP, load_bvh
+    >>> motion = load_bvh(DEMO_CLIP)
+    >>> motion.n_joints, motion.n_frames, round(motion.fps), round(motion.duration, 2)
+    (21, 630, 60, 10.5)
+    >>> motion.joint_names[:3], motion.guess_units().unit
+    (('Hips', 'Spine', 'Spine1'), 'cm')
     """
 
     def __init__(
@@ -196,7 +208,7 @@ class Motion:
         return np.array([rest[e.parent] + np.asarray(e.offset) for e in self.end_sites]).reshape(-1, 3)
 
     def guess_units(self) -> skeleton.UnitsGuess:
-        """The length unit suggested by the rest-pose height (see :func:`retarget.skeleton.guess_units`)."""
+        """The length unit suggested by the rest-pose height (see :func:`retarget.bvh.skeleton.guess_units`)."""
         return skeleton.guess_units(np.vstack([self.rest_positions(), self.rest_end_site_positions()]))
 
     def __repr__(self) -> str:
@@ -205,17 +217,34 @@ class Motion:
 
     # -------------------------------------------------------------------------------------------- FK
     def positions(self) -> np.ndarray:
-        """``(n_frames, n_joints, 3)`` float64 global joint positions, file units, BVH world frame."""
+        """``(n_frames, n_joints, 3)`` float64 global joint positions, file units, BVH world frame.
+
+        Joint ``j`` is ``joint_names[j]``.  Computed for all frames on the first call (see the module
+        notes for the convention), then cached; the array is read-only.
+
+        >>> from retarget.bvh.parse import DEMO_CLIP, load_bvh
+        >>> motion = load_bvh(DEMO_CLIP)
+        >>> p = motion.positions()
+        >>> p.shape, p.flags.writeable
+        ((630, 21, 3), False)
+        >>> p[0, motion.joint_index("Head")].round(1).tolist()  # frame 0, centimetres, Y up
+        [0.4, 153.0, 0.7]
+        """
         return self._pose().positions
 
     def global_transforms(self) -> tuple[np.ndarray, np.ndarray]:
         """``(rotations (n_frames, n_joints, 3, 3), positions (n_frames, n_joints, 3))``: joint frame -> world."""
         pose = self._pose(rotations=True)
-        return pose.rotations, pose.positions  # type: ignore[return-value]
+        if pose.rotations is None:
+            raise AssertionError("unreachable: _pose(rotations=True) computes the rotations")
+        return pose.rotations, pose.positions
 
     def end_site_positions(self) -> np.ndarray:
         """``(n_frames, n_end_sites, 3)`` float64 global End Site positions, file units."""
-        return self._pose(end_sites=True).end_sites  # type: ignore[return-value]
+        sites = self._pose(end_sites=True).end_sites
+        if sites is None:
+            raise AssertionError("unreachable: _pose(end_sites=True) computes the End Sites")
+        return sites
 
     def _pose(self, *, rotations: bool = False, end_sites: bool = False) -> Pose:
         """The cached FK results, computed (again, with more in it) only when something asked for is missing."""
@@ -252,8 +281,26 @@ class Motion:
         Rigify, MakeHuman, any prefix), else by skeleton structure; see
         :mod:`retarget.bvh.skeleton`.  ``names`` overrides detection with three
         joint names (the wrist may be ``"<joint>/End Site"``).
-        Raises ``ValueError`` for a bad side and ``BvhError`` when no arm
-        chain (or more than one) is found.
+
+        Returns an :class:`ArmChain`: ``points`` ``(n_frames, 3, 3)`` float64, file
+        units, BVH world frame (``[:, 0]`` shoulder, ``[:, 1]`` elbow, ``[:, 2]``
+        wrist; read-only), the joints' ``names`` and ``indices``, and how they were
+        found (``method``).
+        Raises ``ValueError`` for a bad side or not three ``names``, and
+        :class:`~retarget.errors.BvhError` (naming the file) when no arm chain
+        (or more than one) is found or a given name does not exist.
+
+        >>> from retarget.bvh.parse import DEMO_CLIP, load_bvh
+        >>> motion = load_bvh(DEMO_CLIP)
+        >>> arm = motion.arm_points("right")
+        >>> arm.names, arm.method
+        (('RightArm', 'RightForeArm', 'RightHand'), 'names')
+        >>> arm.points.shape, arm.bone_lengths  # (n_frames, 3, 3); upper arm and forearm, cm
+        ((630, 3, 3), (29.0, 25.0))
+        >>> motion.arm_points("up")
+        Traceback (most recent call last):
+        ...
+        ValueError: Expected side 'left' or 'right', got 'up'
         """
         found = skeleton.find_arm(
             side,
@@ -296,8 +343,13 @@ class Motion:
             parents=self.parents.copy(),
             offsets=self.offsets * factor,
             layout=self.layout,
-            end_sites=tuple(EndSite(e.parent, tuple(v * factor for v in e.offset)) for e in self.end_sites),
+            end_sites=tuple(EndSite(e.parent, _scaled(e.offset, factor)) for e in self.end_sites),
             channels=channels,
             frame_time=self.frame_time,
             path=self.path,
         )
+
+
+def _scaled(offset: tuple[float, float, float], factor: float) -> tuple[float, float, float]:
+    x, y, z = offset
+    return (x * factor, y * factor, z * factor)

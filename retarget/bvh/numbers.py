@@ -24,7 +24,7 @@ division of the exact decimal value, so every result is bit-identical to
 characters, a lone ``-``, a token with two dots) is flagged in ``needs_slow``
 for the caller.
 
-Callers feed it ~100 KB windows (see ``retarget.bvh._read_frames``) so the
+Callers feed it ~100 KB windows (see ``retarget.bvh.parse._read_frames``) so the
 temporaries stay in cache and below the allocator's mmap threshold: on a
 small VM, page-faulting fresh megabyte-sized temporaries costs more than the
 arithmetic.

@@ -52,10 +52,25 @@ _NONFINITE_RE = re.compile(rb"[+-]?(?:nan|inf|infinity)(?:\(\w*\))?", re.IGNOREC
 
 
 def load_bvh(path: str | PathLike[str]) -> Motion:
-    """Read the BVH file at ``path``.
+    """Read the BVH file at ``path`` into a :class:`~retarget.bvh.motion.Motion`.
 
-    Raises :class:`~retarget.errors.BvhError` for a file that is not valid BVH
-    and ``OSError`` for one that cannot be read.
+    ``path``: a text BVH file, as real exporters write them (see the module notes).
+
+    Returns the clip: ``joint_names`` (ROOT and JOINTs in file order), ``parents`` ``(n_joints,)``,
+    ``offsets`` ``(n_joints, 3)`` float64 file units, ``channels`` ``(n_frames, n_channels)`` float64
+    (the raw values in file order: degrees and file units), ``frame_time`` seconds, ``path``.  Joint
+    positions come from its FK (:meth:`~retarget.bvh.motion.Motion.positions`,
+    :meth:`~retarget.bvh.motion.Motion.arm_points`), computed on first use.
+
+    Raises :class:`~retarget.errors.BvhError` ``"path:line: message"`` for a file that is not valid
+    BVH (the message says what was expected and what was found; nothing partial is returned) and
+    ``OSError`` for one that cannot be read.
+
+    >>> motion = load_bvh(DEMO_CLIP)
+    >>> motion
+    <Motion 'demo.bvh': 21 joints, 630 frames at 60 fps>
+    >>> motion.channels.shape, motion.frame_time  # (n_frames, n_channels), seconds per frame
+    ((630, 66), 0.0166667)
     """
     p = Path(path)
     with open(p, "rb") as f:
@@ -67,7 +82,47 @@ def load_bvh(path: str | PathLike[str]) -> Motion:
 
 
 def parse_bvh(text: str | bytes, *, path: str | PathLike[str] | None = None) -> Motion:
-    """Read BVH from a string (or bytes); ``path`` only names the source in errors and ``Motion.path``."""
+    """Read BVH from a string (or bytes): :func:`load_bvh` without the file.
+
+    ``text``: the whole file (a ``str`` is encoded as UTF-8).  ``path``: only names the source, in
+    errors and as ``Motion.path``; nothing is read from it.
+
+    Returns the :class:`~retarget.bvh.motion.Motion`, as :func:`load_bvh` does.  Raises
+    :class:`~retarget.errors.BvhError` ``"path:line: message"`` (``<bvh>`` without ``path``) for text
+    that is not valid BVH.
+
+    >>> motion = parse_bvh('''HIERARCHY
+    ... ROOT hips
+    ... {
+    ...   OFFSET 0 0 0
+    ...   CHANNELS 3 Xposition Yposition Zposition
+    ...   JOINT hand
+    ...   {
+    ...     OFFSET 0 10 0
+    ...     CHANNELS 1 Zrotation
+    ...     End Site
+    ...     {
+    ...       OFFSET 0 5 0
+    ...     }
+    ...   }
+    ... }
+    ... MOTION
+    ... Frames: 2
+    ... Frame Time: 0.5
+    ... 0 0 0 0
+    ... 1 2 3 90
+    ... ''')
+    >>> motion.joint_names, motion.n_frames, motion.frame_time
+    (('hips', 'hand'), 2, 0.5)
+    >>> motion.positions()[1].tolist()  # frame 1: (n_joints, 3) file units; the hips moved to (1, 2, 3)
+    [[1.0, 2.0, 3.0], [1.0, 12.0, 3.0]]
+    >>> motion.end_site_positions()[1].round(6).tolist()  # the hand turned 90 degrees about z
+    [[-4.0, 12.0, 3.0]]
+    >>> parse_bvh("MOTION", path="clip.bvh")
+    Traceback (most recent call last):
+    ...
+    retarget.errors.BvhError: clip.bvh:1: Expected HIERARCHY, got 'MOTION'
+    """
     data = text.encode("utf-8") if isinstance(text, str) else bytes(text)
     return _parse(np.frombuffer(data, dtype=np.uint8), path=None if path is None else Path(path))
 
@@ -109,7 +164,7 @@ def _parse(text: np.ndarray, *, path: Path | None) -> Motion:
         joint_names=tuple(j.name for j in header.joints),
         parents=np.array([j.parent for j in header.joints], dtype=np.intp),
         offsets=np.array([j.offset for j in header.joints], dtype=np.float64).reshape(-1, 3),
-        layout=tuple(ChannelLayout(j.channel_names, j.first_column) for j in header.joints),
+        layout=tuple(_layout(j) for j in header.joints),
         end_sites=tuple(EndSite(parent=e[0], offset=e[1]) for e in header.end_sites),
         channels=channels,
         frame_time=header.frame_time,
@@ -147,6 +202,13 @@ class _Joint:
         self.channel_names: tuple[str, ...] | None = None
         self.first_column = 0
         self.line = line
+
+
+def _layout(joint: _Joint) -> ChannelLayout:
+    """The CHANNELS of a joint of a parsed header (``_Header._require_header`` saw them before its '}')."""
+    if joint.channel_names is None:
+        raise AssertionError(f"unreachable: joint {joint.name!r} of a parsed header without CHANNELS")
+    return ChannelLayout(joint.channel_names, joint.first_column)
 
 
 class _Header:
@@ -299,8 +361,7 @@ class _Header:
         words = text.split()[1:]
         if len(words) != 3:
             raise self._error(f"Expected 3 numbers after OFFSET, got {len(words)}")
-        values = tuple(self._number(w, "OFFSET") for w in words)
-        return values  # type: ignore[return-value]
+        return self._number(words[0], "OFFSET"), self._number(words[1], "OFFSET"), self._number(words[2], "OFFSET")
 
     def _number(self, word: str, where: str) -> float:
         if not _NUMBER_RE.fullmatch(word.encode("utf-8", "replace")):
@@ -491,7 +552,9 @@ def _parse_tokens(
     return bvh_numbers.parse_tokens(padded, 8, starts, ends, out=out)
 
 
-def _read_slow_tokens(block, starts, ends, values, slow) -> tuple[int, str] | None:
+def _read_slow_tokens(
+    block: np.ndarray, starts: np.ndarray, ends: np.ndarray, values: np.ndarray, slow: np.ndarray
+) -> tuple[int, str] | None:
     """Read the tokens the fast path flagged; return the first bad one as (token index, message).
 
     Valid ones (exponents, long numbers) are checked with one regex over all

@@ -18,10 +18,14 @@ Example::
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TypeAlias
 
 import numpy as np
 
 AXIS_INDEX: dict[str, int] = {"X": 0, "Y": 1, "Z": 2}
+
+#: One entry of a 3x3 product as :func:`compose_entries` gives it: ``None`` (zero), ``1.0`` or an array.
+Entry: TypeAlias = np.ndarray | float | None
 
 
 def _axis_index(axis: str | int) -> int:
@@ -157,7 +161,9 @@ def _horner(z: np.ndarray, coefficients: Sequence[float]) -> np.ndarray:
     return out
 
 
-def compose_entries(axes: Sequence[int], cos: Sequence[np.ndarray], sin: Sequence[np.ndarray]) -> list[list]:
+def compose_entries(
+    axes: Sequence[int], cos: Sequence[np.ndarray] | np.ndarray, sin: Sequence[np.ndarray] | np.ndarray
+) -> list[list[Entry]]:
     """The 3x3 product of :func:`compose_cos_sin` as nested lists of entries: ``None`` (zero), ``1.0`` or arrays.
 
     For callers that store matrices entry-major (``(3, 3, ...)``).  ``axes``
@@ -171,11 +177,13 @@ def compose_entries(axes: Sequence[int], cos: Sequence[np.ndarray], sin: Sequenc
 
 
 # Symbolic entries: None is 0, 1.0 is 1, (sign, array) is +/-array.
+_Signed: TypeAlias = tuple[int, np.ndarray | float]
+_Symbol: TypeAlias = _Signed | float | None
 
 
-def _elementary(a: int, c: np.ndarray, s: np.ndarray) -> list[list]:
+def _elementary(a: int, c: np.ndarray, s: np.ndarray) -> list[list[_Symbol]]:
     i, k = (a + 1) % 3, (a + 2) % 3
-    m: list[list] = [[None] * 3 for _ in range(3)]
+    m: list[list[_Symbol]] = [[None] * 3 for _ in range(3)]
     m[a][a] = 1.0
     m[i][i] = (1, c)
     m[k][k] = (1, c)
@@ -184,7 +192,7 @@ def _elementary(a: int, c: np.ndarray, s: np.ndarray) -> list[list]:
     return m
 
 
-def _mul(x, y):
+def _mul(x: _Symbol, y: _Symbol) -> _Symbol:
     if x is None or y is None:
         return None
     if isinstance(x, float):
@@ -194,25 +202,32 @@ def _mul(x, y):
     return (x[0] * y[0], x[1] * y[1])
 
 
-def _add(x, y):
+def _add(x: _Symbol, y: _Symbol) -> _Symbol:
     if x is None:
         return y
     if y is None:
         return x
     if isinstance(x, float) or isinstance(y, float):
-        return (1, _value(x) + _value(y))
+        return (1, _dense(x) + _dense(y))
     if x[0] == y[0]:
         return (x[0], x[1] + y[1])
     return (x[0], x[1] - y[1])
 
 
-def _value(e):
+def _value(e: _Symbol) -> Entry:
     if e is None or isinstance(e, float):
         return e
     return e[1] if e[0] > 0 else -e[1]
 
 
-def _symbolic_matmul(p: list[list], q: list[list]) -> list[list]:
+def _dense(e: _Signed | float) -> np.ndarray | float:
+    """:func:`_value` of a non-zero entry."""
+    if isinstance(e, float):
+        return e
+    return e[1] if e[0] > 0 else -e[1]
+
+
+def _symbolic_matmul(p: list[list[_Symbol]], q: list[list[_Symbol]]) -> list[list[_Symbol]]:
     return [
         [_add(_add(_mul(p[i][0], q[0][k]), _mul(p[i][1], q[1][k])), _mul(p[i][2], q[2][k])) for k in range(3)]
         for i in range(3)

@@ -248,7 +248,14 @@ def _path_between(parents: np.ndarray, child: int, ancestor: int) -> list[int]:
     return out
 
 
-def _explicit(side, names, joint_names, parents, end_site_parents, path) -> ArmJoints:
+def _explicit(
+    side: str,
+    names: Sequence[str],
+    joint_names: Sequence[str],
+    parents: np.ndarray,
+    end_site_parents: Sequence[int],
+    path: str | PathLike[str] | None,
+) -> ArmJoints:
     if len(names) != 3:
         raise ValueError(f"Expected 3 joint names (shoulder, elbow, wrist), got {len(names)}")
     index = {n: i for i, n in enumerate(joint_names)}
@@ -276,13 +283,20 @@ def _explicit(side, names, joint_names, parents, end_site_parents, path) -> ArmJ
             "branches",
             path=path,
         )
-    return ArmJoints(side, tuple(names), tuple(found), wrist_is_site, "explicit")  # type: ignore[arg-type]
+    return ArmJoints(side, (names[0], names[1], names[2]), (found[0], found[1], found[2]), wrist_is_site, "explicit")
 
 
 # ------------------------------------------------------------------------------------------ structure
 
 
-def _by_structure(side, joint_names, parents, offsets, end_site_parents, end_site_offsets) -> ArmJoints | None:
+def _by_structure(
+    side: str,
+    joint_names: Sequence[str],
+    parents: np.ndarray,
+    offsets: np.ndarray,
+    end_site_parents: Sequence[int],
+    end_site_offsets: Sequence[Sequence[float]],
+) -> ArmJoints | None:
     n = len(joint_names)
     if n < 4:
         return None
@@ -333,14 +347,14 @@ def _by_structure(side, joint_names, parents, offsets, end_site_parents, end_sit
     else:
         names.append(joint_names[chain[idx[2]]])
         wrist = chain[idx[2]]
-    return ArmJoints(side, tuple(names), (chain[idx[0]], chain[idx[1]], wrist), is_site, "structure")  # type: ignore
+    return ArmJoints(side, (names[0], names[1], names[2]), (chain[idx[0]], chain[idx[1]], wrist), is_site, "structure")
 
 
 def _main_chain(start: int, children: list[list[int]], rest: np.ndarray) -> list[int]:
     """Joints from ``start`` down, always into the child with the longest reach."""
 
     def reach(j: int) -> float:
-        return max((np.linalg.norm(rest[c] - rest[j]) + reach(c) for c in children[j]), default=0.0)
+        return float(max((np.linalg.norm(rest[c] - rest[j]) + reach(c) for c in children[j]), default=0.0))
 
     chain = [start]
     while children[chain[-1]]:
@@ -359,7 +373,7 @@ def _subtree_side(start: int, children: list[list[int]], joint_names: Sequence[s
         stack.extend(children[j])
     if votes["left"] == votes["right"]:
         return None
-    return max(votes, key=votes.get)  # type: ignore[arg-type]
+    return max(votes, key=votes.__getitem__)
 
 
 # ------------------------------------------------------------------------------------------ units

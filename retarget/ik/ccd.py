@@ -52,6 +52,7 @@ import math
 import random
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TypeAlias
 
 import numpy as np
 
@@ -65,6 +66,11 @@ _cos = math.cos
 _sin = math.sin
 _DEFAULT = object()
 _EPS2 = 1e-16  #: |u⊥|^2 |v⊥|^2 below this (m^4): the joint cannot move the tool toward the target
+
+#: What ``CCDSolver._fk`` returns: the tool point ``(x, y, z)``, then the tool rotation row by row (12 floats).
+_ToolPose: TypeAlias = tuple[float, float, float, float, float, float, float, float, float, float, float, float]
+#: A 3x3 rotation as rows of floats.
+_Rows: TypeAlias = tuple[tuple[float, ...], ...]
 
 
 class Weighting(enum.Enum):
@@ -259,7 +265,7 @@ class CCDSolver:
         self._az = [0.0] * n
 
     # ---------------------------------------------------------------------------------------------------------------
-    def _fk(self, q: list[float]) -> tuple[float, ...]:
+    def _fk(self, q: list[float]) -> _ToolPose:
         """Forward pass over ``q``: fills the world pivots/axes buffers and returns 12 floats,
         the tool point ``(x, y, z)`` then the tool rotation row by row."""
         px, py, pz, ax, ay, az = self._px, self._py, self._pz, self._ax, self._ay, self._az
@@ -333,14 +339,36 @@ class CCDSolver:
         max_iterations: int | None = None,
         max_step: float | None | object = _DEFAULT,
     ) -> IKResult:
-        """Solve for the tool point at ``target`` ``(3,)`` metres, starting from ``q0`` ``(n_joints,)`` radians.
+        """Solve for the tool point at ``target`` ``(3,)`` metres (base frame), starting from ``q0``.
 
-        ``rotation``: optional ``(3, 3)`` target orientation of the tool frame (base frame).  An
-        arm with fewer than 6 joints can rarely match a full orientation: it then ends at the
-        weighted compromise with ``converged=False``.
-        ``tolerance``/``max_iterations``/``max_step`` override the solver's defaults for this call.
-        ``q0`` outside the limits is clipped first.  Raises ``ValueError`` for bad shapes or
-        non-finite input; never returns NaN.
+        ``q0``: ``(n_joints,)`` radians, clipped into the limits first.  ``rotation``: optional
+        ``(3, 3)`` rotation matrix, the target orientation of the tool frame in the base frame
+        (position + orientation CCD; an arm with fewer than 6 joints can rarely match a full
+        orientation: it then ends at the weighted compromise with ``converged=False``).
+        ``tolerance`` (metres), ``max_iterations`` (sweeps; 0 only measures ``q0``) and ``max_step``
+        (radians per joint from ``q0``; None: only the limits) override the solver's defaults for
+        this call.
+
+        Returns an :class:`IKResult`: ``q`` ``(n_joints,)`` float64 radians, always inside the
+        limits (the closest pose found when the target is out of reach; never NaN), ``error``
+        metres, ``orientation_error`` radians, ``converged``, ``iterations``, ``restarts``.
+        Raises ``ValueError`` for a bad shape or a non-finite input (or a rotation that is not a
+        proper rotation matrix) and :class:`~retarget.errors.ConfigError` for a bad override.
+
+        >>> from retarget.arm.load import load_arm
+        >>> arm = load_arm("wx250s")
+        >>> solver = CCDSolver(arm)
+        >>> T, _ = arm.fk([0.2, -0.3, 0.4, 0.0, 0.5, 0.0])  # a reachable tool pose
+        >>> result = solver.solve(T[:3, 3], arm.home)
+        >>> result.converged, result.error <= solver.tolerance, result.q.shape
+        (True, True, (6,))
+        >>> pose = solver.solve(T[:3, 3], arm.home, T[:3, :3], max_iterations=300)  # position and orientation
+        >>> pose.converged, pose.orientation_error <= solver.orientation_tolerance
+        (True, True)
+        >>> solver.solve([0.3, 0.0], arm.home)
+        Traceback (most recent call last):
+        ...
+        ValueError: Expected target of shape (3,), got (2,)
         """
         n = self.n
         tx, ty, tz = _vec3(target, "target")
@@ -381,7 +409,7 @@ class CCDSolver:
         stall = self.stall_ratio
         accel = self.accel_ratio
         carried = self.order is SweepOrder.BASE_FIRST  # a full base-first sweep leaves the buffers current
-        fresh: tuple | None = f  # the pivot/axis buffers hold the forward pass of q, f[:3] the tool point
+        fresh: tuple[float, ...] | None = f  # the pivot/axis buffers hold the forward pass of q, f[:3] the tool point
         while sweeps < budget:
             sweeps += 1
             before = q[:]
@@ -447,7 +475,9 @@ class CCDSolver:
             return [min(max(b + rng.gauss(0.0, sigma), lo), hi) for b, lo, hi in zip(best, lower, upper, strict=True)]
         return [rng.uniform(lo, hi) for lo, hi in zip(lower, upper, strict=True)]
 
-    def _sweep(self, q: list[float], tx: float, ty: float, tz: float, tol2: float, fresh: tuple | None) -> float:
+    def _sweep(
+        self, q: list[float], tx: float, ty: float, tz: float, tol2: float, fresh: tuple[float, ...] | None
+    ) -> float:
         """One tip-to-base sweep on ``q`` (in place); returns the squared distance after it.
 
         ``fresh`` is the result of ``_fk(q)`` when the buffers already hold it (saves a forward pass).
@@ -494,7 +524,7 @@ class CCDSolver:
         return dx * dx + dy * dy + dz * dz
 
     def _sweep_forward(
-        self, q: list[float], tx: float, ty: float, tz: float, tol2: float, fresh: tuple | None
+        self, q: list[float], tx: float, ty: float, tz: float, tol2: float, fresh: tuple[float, ...] | None
     ) -> float:
         """One base-to-tip sweep on ``q`` (in place); returns the squared distance after it.
 
@@ -558,7 +588,9 @@ class CCDSolver:
         return dx * dx + dy * dy + dz * dz
 
     # ---------------------------------------------------------------------------------------------------------------
-    def _solve_pose(self, tx: float, ty: float, tz: float, rot: tuple, q: list[float], tol: float, budget: int):
+    def _solve_pose(
+        self, tx: float, ty: float, tz: float, rot: _Rows, q: list[float], tol: float, budget: int
+    ) -> IKResult:
         """Position + orientation CCD (Wang & Chen), with the same line search and restarts as position-only.
 
         Progress is measured by the cost ``(distance / reach)^2 + orientation_weight * (3 - tr(R^T R_target))``.
@@ -623,7 +655,7 @@ class CCDSolver:
         converged = perr <= tol and oerr <= rtol
         return IKResult(np.array(best_q), perr, sweeps, converged, orientation_error=oerr, restarts=restarts)
 
-    def _sweep_pose(self, q: list[float], tx: float, ty: float, tz: float, g: tuple) -> tuple[float, float]:
+    def _sweep_pose(self, q: list[float], tx: float, ty: float, tz: float, g: tuple[float, ...]) -> tuple[float, float]:
         """One tip-to-base position + orientation sweep on ``q`` in place: ``phi* = atan2(k3, k2 - k1)``.
 
         ``g`` holds the desired tool axes (the target rotation's columns) as 9 floats.  Returns
@@ -729,12 +761,28 @@ def solve_ik(
     restarts: int = 16,
     seed: int = 0,
 ) -> IKResult:
-    """Solve CCD IK on ``arm`` for ``target`` ``(3,)`` metres (base frame) from ``q0`` (default: home).
+    """Solve CCD IK on ``arm`` for the tool point at ``target`` ``(3,)`` metres (base frame).
 
-    ``q0`` is ``(n_joints,)`` radians; ``rotation`` an optional ``(3, 3)`` tool orientation.
-    See :class:`CCDSolver` for the knobs and the module docstring for the method.  The
-    solver is built once per arm and set of knobs and cached on the arm, so calling this
-    every tick costs little more than ``CCDSolver.solve``.
+    ``q0``: the start, ``(n_joints,)`` radians (default ``arm.home``; clipped into the limits).
+    ``rotation``: optional ``(3, 3)`` rotation matrix, the tool frame's target orientation in the
+    base frame.  ``tolerance`` (metres), ``max_iterations`` (sweeps) and ``max_step`` (radians per
+    joint from ``q0``) apply to this call; the other knobs are those of :class:`CCDSolver` (the
+    module docstring has the method).  The solver is built once per arm and set of knobs and cached
+    on the arm, so calling this every tick costs little more than :meth:`CCDSolver.solve`.
+
+    Returns an :class:`IKResult`: ``q`` ``(n_joints,)`` float64 radians, always inside the limits
+    (the closest pose found when the target is out of reach; never NaN), ``error`` metres,
+    ``converged``, ``iterations``.  Raises ``ValueError`` for a bad shape or a non-finite input and
+    :class:`~retarget.errors.ConfigError` for a bad knob.
+
+    >>> from retarget.arm.load import load_arm
+    >>> arm = load_arm("wx250s")
+    >>> result = solve_ik(arm, [0.3, 0.0, 0.2])  # from home
+    >>> result.converged, result.error <= 1e-3, arm.within_limits(result.q)
+    (True, True, True)
+    >>> far = solve_ik(arm, [2.0, 0.0, 0.5], result.q)  # out of reach: the closest pose, not converged
+    >>> far.converged, round(far.error, 1), arm.within_limits(far.q)
+    (False, 1.4, True)
     """
     key = (
         "ik",
@@ -746,7 +794,7 @@ def solve_ik(
         restarts,
         seed,
     )
-    solver = arm._cache.get(key)
+    solver: CCDSolver | None = arm._cache.get(key)
     if solver is None:
         solver = arm._cache[key] = CCDSolver(
             arm,
@@ -770,7 +818,7 @@ def _freeze(weights: object) -> object:
     return tuple(np.asarray(weights, dtype=np.float64).ravel().tolist())
 
 
-def _rpy_rows(rpy: Sequence[float]) -> tuple[tuple[float, ...], ...] | None:
+def _rpy_rows(rpy: Sequence[float]) -> _Rows | None:
     """Rows of the URDF rpy rotation, or None for the identity (the common case, skipped in the loop)."""
     r, p, y = (float(v) for v in rpy)
     if r == p == y == 0.0:
@@ -783,7 +831,7 @@ def _rpy_rows(rpy: Sequence[float]) -> tuple[tuple[float, ...], ...] | None:
     )
 
 
-def _rodrigues(x: float, y: float, z: float, t: float) -> tuple[tuple[float, ...], ...]:
+def _rodrigues(x: float, y: float, z: float, t: float) -> _Rows:
     c, s = _cos(t), _sin(t)
     k = 1.0 - c
     return (
@@ -793,7 +841,9 @@ def _rodrigues(x: float, y: float, z: float, t: float) -> tuple[tuple[float, ...
     )
 
 
-def _mul(r00, r01, r02, r10, r11, r12, r20, r21, r22, o) -> tuple[float, ...]:
+def _mul(
+    r00: float, r01: float, r02: float, r10: float, r11: float, r12: float, r20: float, r21: float, r22: float, o: _Rows
+) -> tuple[float, float, float, float, float, float, float, float, float]:
     """Row-major ``R @ O`` with ``R`` as 9 floats and ``O`` as rows."""
     (o00, o01, o02), (o10, o11, o12), (o20, o21, o22) = o
     return (
@@ -822,6 +872,7 @@ def _vec3(value: Sequence[float] | np.ndarray, what: str) -> tuple[float, float,
 
 
 def _joint_vector(value: Sequence[float] | np.ndarray, n: int) -> list[float]:
+    q: list[float]
     if isinstance(value, np.ndarray) and value.shape == (n,) and value.dtype == np.float64:
         q = value.tolist()
     else:
@@ -835,7 +886,7 @@ def _joint_vector(value: Sequence[float] | np.ndarray, n: int) -> list[float]:
     return q
 
 
-def _rotation(value: np.ndarray) -> tuple[tuple[float, ...], ...]:
+def _rotation(value: np.ndarray) -> _Rows:
     r = np.asarray(value, dtype=np.float64)
     if r.shape != (3, 3):
         raise ValueError(f"Expected rotation of shape (3, 3), got {r.shape}")

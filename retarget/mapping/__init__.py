@@ -1,7 +1,8 @@
 """Human to arm: the wrist relative to the shoulder, in a torso body frame, scaled into the arm's workspace.
 
 - :mod:`~retarget.mapping.config`: :class:`MappingConfig` (the ``[mapping]`` table), :class:`Side`, :class:`Axis`;
-- :mod:`~retarget.mapping.geometry`: body frames, the arm's workspace, :func:`retarget_targets`.
+- :mod:`~retarget.mapping.geometry`: body frames, the arm's shoulder pivot and reach, its workspace,
+  :func:`retarget_targets` (a clip on an arm: :class:`Targets`) and the IK weights that follow them.
 """
 
 from retarget.mapping.config import Axis, MappingConfig, Side
@@ -11,6 +12,7 @@ from retarget.mapping.geometry import (
     Workspace,
     arm_geometry,
     body_frames,
+    default_origin,
     fixed_frame,
     ik_weights,
     map_points,
@@ -26,6 +28,7 @@ __all__ = [
     "Workspace",
     "arm_geometry",
     "body_frames",
+    "default_origin",
     "fixed_frame",
     "ik_weights",
     "map_points",

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import enum
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields, replace
 from os import PathLike
 from typing import Any
@@ -113,9 +113,26 @@ class MappingConfig:
     ) -> MappingConfig:
         """Parse the raw ``[mapping]`` TOML table of an arm file, then apply ``overrides``.
 
-        Raises ``ConfigError`` with ``key="mapping.<name>"`` and the file ``path``
-        for an unknown key or a bad value.  ``overrides`` (from CLI flags; ``None``
-        values are skipped) use the same names and conversions.
+        ``table``: the table as read (``Arm.mapping``; None or empty: every default).  ``path``: the
+        arm file, named in errors.  ``overrides``: the same keys from CLI flags, applied after the
+        table (``None`` values are skipped).  Values are taken as TOML and the CLI spell them:
+        ``"left"``, ``"+z"`` or ``"z"``, numbers, ``origin`` as 3 numbers or ``"x,y,z"`` (metres,
+        base frame), ``joint_weights`` as ``{joint = w}`` or one number per joint; the keys, units and
+        defaults are in the module docstring.
+
+        Returns the validated, frozen config.  Raises :class:`~retarget.errors.ConfigError` with
+        ``key="mapping.<name>"`` and the file ``path`` for an unknown key, a bad value, or
+        ``min_reach >= max_reach``.
+
+        >>> config = MappingConfig.from_table({"side": "left", "forward": "z", "arm_scale": 0.5})
+        >>> config.side, config.forward, config.arm_scale
+        (<Side.LEFT: 'left'>, <Axis.PZ: '+z'>, 0.5)
+        >>> MappingConfig.from_table({"side": "left"}, overrides={"side": "right", "floor": None}).side
+        <Side.RIGHT: 'right'>
+        >>> MappingConfig.from_table({"max_reach": 2}, path="arms/my_arm.toml")
+        Traceback (most recent call last):
+        ...
+        retarget.errors.ConfigError: arms/my_arm.toml: mapping.max_reach: Expected a fraction in (0, 1] (got 2.0)
         """
         known = {f.name for f in fields(cls)}
         values: dict[str, Any] = {}
@@ -157,6 +174,8 @@ def _convert(name: str, raw: Any, *, key: str, path: str | PathLike[str] | None)
                 raise ValueError
             return Axis(text)
         if name == "joint_weights":
+            items: tuple[tuple[str, float], ...] | tuple[float, ...]
+            values: Sequence[float]
             if isinstance(raw, Mapping):
                 items = tuple((str(k), float(v)) for k, v in raw.items())
                 values = [v for _, v in items]

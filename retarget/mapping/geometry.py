@@ -2,7 +2,7 @@
 
 The mapping is position based and built from five parts, each configurable in
 the ``[mapping]`` table of an arm description and by CLI flags
-(:class:`~retarget.mapping_config.MappingConfig`, in :mod:`retarget.mapping.config`):
+(:class:`~retarget.mapping.config.MappingConfig`, in :mod:`retarget.mapping.config`):
 
 1. the human **wrist relative to the shoulder** of the chosen side;
 2. expressed in a **body frame** built from the torso (hips, the midpoint of
@@ -45,11 +45,13 @@ from retarget.errors import ConfigError
 from retarget.mapping.config import Axis, MappingConfig
 
 __all__ = [
-    "default_origin",
+    "ArmGeometry",
     "Targets",
     "Workspace",
     "arm_geometry",
     "body_frames",
+    "default_origin",
+    "fixed_frame",
     "ik_weights",
     "map_points",
     "retarget_targets",
@@ -85,7 +87,8 @@ def default_origin(config: MappingConfig, geometry: ArmGeometry) -> np.ndarray:
     human arm's sphere then fits inside the workspace shell, and a hanging arm lands just above the
     floor in front of the robot.
     """
-    return geometry.pivot + geometry.reach * (geometry.basis(config.robot_forward) @ np.array([0.3, 0.0, 0.38]))
+    ahead: np.ndarray = geometry.basis(config.robot_forward) @ np.array([0.3, 0.0, 0.38])
+    return geometry.pivot + geometry.reach * ahead
 
 
 def arm_geometry(arm: Arm) -> ArmGeometry:
@@ -151,7 +154,7 @@ def ik_weights(arm: Arm, config: MappingConfig) -> np.ndarray:
     if given:
         if isinstance(given[0], tuple):
             names = arm.joint_names
-            for name, w in given:  # type: ignore[misc]
+            for name, w in given:
                 if name not in names:
                     raise ConfigError(
                         f"unknown joint; expected one of {', '.join(names)}",
@@ -283,7 +286,7 @@ def fixed_frame(forward: Axis, up: Axis) -> np.ndarray:
 
 
 def _norm(v: np.ndarray, what: str) -> np.ndarray:
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    n: np.ndarray = np.linalg.norm(v, axis=-1, keepdims=True)
     if np.any(n < 1e-12):
         raise ValueError(f"Expected a non-degenerate {what}, got a zero-length vector")
     return n
@@ -308,7 +311,8 @@ def map_points(
     local = np.einsum("...ji,...j->...i", frames, rel)  # frames^T @ rel: (forward, left, up)
     if basis is not None:
         local = local @ np.asarray(basis).T
-    return local * scale + origin
+    targets: np.ndarray = local * scale + origin
+    return targets
 
 
 @dataclass(frozen=True)
@@ -410,10 +414,28 @@ def _orthonormalize(m: np.ndarray) -> np.ndarray:
 
 
 def retarget_targets(motion: Motion, arm: Arm, config: MappingConfig | None = None) -> Targets:
-    """Tool targets for every frame of ``motion`` on ``arm``.
+    """Tool-point targets for every frame of ``motion`` on ``arm``: the steps in the module docstring.
 
-    ``config`` defaults to ``MappingConfig.from_table(arm.mapping, path=arm.source)``.
-    Raises ``BvhError`` when the clip has no arm chain for the side.
+    ``motion``: the clip, in any length unit (the scale comes from its own arm length).  ``arm``: the
+    robot.  ``config``: the mapping; default ``MappingConfig.from_table(arm.mapping, path=arm.source)``,
+    the arm file's ``[mapping]`` table.
+
+    Returns :class:`Targets`: ``positions`` ``(n_frames, 3)`` float64 metres in the arm's base frame,
+    inside the :class:`Workspace`; ``raw`` the same before the workspace clamp; ``clamped``
+    ``(n_frames,)`` bool; ``rotations`` ``(n_frames, 3, 3)`` tool orientations in the base frame when
+    ``config.orientation_weight > 0``, else None; ``frame_time`` seconds; ``scale`` metres per file unit.
+
+    Raises :class:`~retarget.errors.BvhError` when the clip has no arm chain for ``config.side`` or
+    for the other side (the torso frame needs both shoulders), :class:`~retarget.errors.ConfigError`
+    for a bad ``[mapping]`` table, and ``ValueError`` for a degenerate clip (a zero-length arm or torso).
+
+    >>> from retarget.arm.load import load_arm
+    >>> from retarget.bvh.parse import DEMO_CLIP, load_bvh
+    >>> targets = retarget_targets(load_bvh(DEMO_CLIP), load_arm("wx250s"))
+    >>> targets.positions.shape, targets.n_clamped, targets.frame_time, targets.rotations is None
+    ((630, 3), 0, 0.0166667, True)
+    >>> bool(targets.workspace.clamp(targets.positions)[1].any())  # every target already inside the workspace
+    False
     """
     if config is None:
         config = MappingConfig.from_table(arm.mapping, path=arm.source)
@@ -478,4 +500,5 @@ def _hand_rotations(motion: Motion, names: tuple[str, ...], frames: np.ndarray, 
         z = np.cross(x, [1.0, 0.0, 0.0]) if abs(x[0]) < 0.9 else np.cross(x, [0.0, 0.0, 1.0])
     z /= np.linalg.norm(z)
     align = np.stack([x, np.cross(z, x), z], axis=-1)  # tool -> hand local
-    return np.einsum("...ji,...jk,kl->...il", frames, R, align)
+    tool: np.ndarray = np.einsum("...ji,...jk,kl->...il", frames, R, align)
+    return tool

@@ -82,7 +82,7 @@ def test_tip_from_the_servo_file(tmp_path):
 
 def test_ambiguous_tip_lists_the_leaves(tmp_path):
     leaves = "ee_gripper_link, gripper_prop_link, left_finger_link, right_finger_link"
-    with pytest.raises(ConfigError, match=re.escape(f"cannot tell the tip link: leaves {leaves}; give tip=")):
+    with pytest.raises(ConfigError, match=re.escape(f"cannot tell the tip link: leaves {leaves}; name one")):
         load_arm(write_arm(tmp_path))
 
 
