@@ -20,7 +20,8 @@ import sys
 import traceback
 from collections.abc import Sequence
 
-from retarget.errors import BusError, RetargetError
+from retarget.cli.options import option_error
+from retarget.errors import BusError, ConfigError, RetargetError
 
 #: Subcommands in the order ``--help`` lists them.
 COMMANDS: tuple[str, ...] = ("replay", "teleop", "export", "inspect", "arm", "scan", "sim")
@@ -87,7 +88,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except RetargetError as exc:
         if args.verbose:
             traceback.print_exc()
-        print(f"retarget: {exc}", file=sys.stderr)
+        print(f"retarget: {option_error(exc) if isinstance(exc, ConfigError) else exc}", file=sys.stderr)
         return EXIT_BUS if isinstance(exc, BusError) else EXIT_USAGE
     except KeyboardInterrupt:
         print("retarget: interrupted", file=sys.stderr)

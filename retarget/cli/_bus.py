@@ -14,17 +14,18 @@ import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
+import sim
+from drivers import DynamixelBus
+from retarget.arm import Arm
+from retarget.control import LoopConfig
+from retarget.control.bus import Bus
+from retarget.control.clock import Clock, MonotonicClock, VirtualClock
 from retarget.errors import ConfigError
-
-if TYPE_CHECKING:
-    from retarget.arm import Arm
-    from retarget.control import LoopConfig
-    from retarget.control.bus import Bus
-    from retarget.control.clock import Clock
+from sim.transport import bus_from_url
 
 SHUTDOWN_MODES = ("hold", "rest", "off")
 
@@ -102,8 +103,6 @@ class BusSetup:
 
     def release(self) -> None:
         if self.registered is not None:
-            import sim
-
             sim.unregister(self.registered)
 
 
@@ -132,17 +131,12 @@ def build_bus(args: argparse.Namespace, arm: Arm, config: LoopConfig | None = No
     ``clock=virtual``).  A real port runs on the monotonic clock.  With the run's ``config`` the driver
     also limits speed itself (:func:`servo_limits`).
     """
-    from drivers import DynamixelBus
-    from retarget.control.clock import MonotonicClock, VirtualClock
 
     limits = servo_limits(arm, config)
     port: str | None = args.port
     if not is_sim_port(port):
         clock: Clock = MonotonicClock()
         return BusSetup(DynamixelBus(arm, port, shutdown=args.shutdown, clock=clock, **limits), clock)
-
-    import sim
-    from sim.transport import bus_from_url
 
     name = None
     if port is None:
@@ -158,6 +152,6 @@ def build_bus(args: argparse.Namespace, arm: Arm, config: LoopConfig | None = No
         raise ConfigError("--fast needs a simulated bus on a virtual clock", key="--port", value=port)
     if port is None or not port.startswith("sim://@"):
         port = sim.attach(simbus)
-        name = port.removeprefix("sim://@")
+        name = port  # the URL: sim.unregister takes it as it is
     bus = DynamixelBus(arm, port, shutdown=args.shutdown, clock=simbus.clock, **limits)
     return BusSetup(bus, simbus.clock, name)

@@ -14,8 +14,12 @@ import math
 import sys
 from typing import Any
 
+from retarget.arm.config import list_arms
+from retarget.arm.load import load_arm
 from retarget.cli import print_json
+from retarget.cli._arm import load_arm_naming_links
 from retarget.errors import ConfigError
+from retarget.ik.ccd import CCDSolver
 
 EXAMPLES = """\
 examples:
@@ -29,7 +33,7 @@ examples:
 
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
-    parser = subparsers.add_parser(
+    parser: argparse.ArgumentParser = subparsers.add_parser(
         "arm",
         help="show, check and query an arm description (TOML or URDF)",
         description=__doc__.split("\n\n")[1].replace("\n", " "),
@@ -56,12 +60,11 @@ def parse_point(text: str, option: str = "--ik") -> tuple[float, float, float]:
         values = ()
     if len(values) != 3 or not all(math.isfinite(v) for v in values):
         raise ConfigError("expected three finite numbers X,Y,Z in metres", key=option, value=text)
-    return values  # type: ignore[return-value]
+    x, y, z = values
+    return x, y, z
 
 
 def run(args: argparse.Namespace) -> int:
-    from retarget.arm.config import list_arms, load_arm
-
     if args.list:
         names = list_arms()
         rows = [(n, load_arm(n).title) for n in names]
@@ -71,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
             for n, t in rows:
                 print(f"{n:10s} {t}")
         return 0
-    arm = load_arm(args.arm, base=args.base, tip=args.tip)
+    arm = load_arm_naming_links(args.arm, base=args.base, tip=args.tip)
     report = describe(arm)
     if args.ik is not None:
         report["ik"] = solve(arm, parse_point(args.ik), args.start)
@@ -82,10 +85,8 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def describe(arm: Any) -> dict:
+def describe(arm: Any) -> dict[str, Any]:
     """The arm as plain JSON-able data; angles in degrees, lengths in metres."""
-    from retarget.ik import CCDSolver
-
     T, _ = arm.fk(arm.home)
     joints = []
     for j in arm.joints:
@@ -126,9 +127,7 @@ def describe(arm: Any) -> dict:
     }
 
 
-def solve(arm: Any, target: tuple[float, float, float], start: str) -> dict:
-    from retarget.ik import CCDSolver
-
+def solve(arm: Any, target: tuple[float, float, float], start: str) -> dict[str, Any]:
     q0 = arm.home if start == "home" else arm.rest
     r = CCDSolver(arm).solve(target, q0)
     reached, _ = arm.fk(r.q)
@@ -151,7 +150,7 @@ def _axis_name(axis: list[float]) -> str:
     return "(" + ", ".join(f"{v:.3g}" for v in axis) + ")"
 
 
-def format_text(report: dict) -> str:
+def format_text(report: dict[str, Any]) -> str:
     lines = [f"{report['name']}: {report['title']}"]
     if report["source"]:
         lines.append(f"  from {report['source']}")

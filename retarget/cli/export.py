@@ -15,6 +15,8 @@ import sys
 from typing import IO, Any
 
 from retarget.cli.replay import add_clip_arguments, add_mapping_arguments, load_inputs, loop_config
+from retarget.control import ControlLoop, TickRecord
+from retarget.control.clock import VirtualClock
 
 EXAMPLES = """\
 examples:
@@ -26,7 +28,7 @@ examples:
 
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
-    parser = subparsers.add_parser(
+    parser: argparse.ArgumentParser = subparsers.add_parser(
         "export",
         help="write a clip's retargeted joint trajectory as CSV (no bus)",
         description=__doc__.split("\n\n")[0].split(": ", 1)[1] + " Columns: time_s, then <joint>_rad per joint.",
@@ -40,8 +42,6 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    from retarget.control import ControlLoop, TickRecord
-    from retarget.control.clock import VirtualClock
 
     inputs = load_inputs(args)
     config = loop_config(args, inputs.motion)

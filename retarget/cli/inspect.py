@@ -14,6 +14,7 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
+from retarget.bvh import DEMO_CLIP, Motion, load_bvh
 from retarget.cli import print_json
 from retarget.errors import BvhError
 
@@ -35,7 +36,7 @@ _UNIT_NAMES = {"m": "metres", "cm": "centimetres", "mm": "millimetres", "in": "i
 
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
-    parser = subparsers.add_parser(
+    parser: argparse.ArgumentParser = subparsers.add_parser(
         "inspect",
         help="show a BVH file's skeleton, frame rate, units and arm chains",
         description=DESCRIPTION,
@@ -58,7 +59,6 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    from retarget.bvh import DEMO_CLIP, load_bvh
 
     if args.arm_joints and args.side == "both":
         raise BvhError("Expected --side left or right with --arm-joints, got --side both", path=args.file)
@@ -72,7 +72,9 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def describe(motion: Any, *, sides: tuple[str, ...] = ("left", "right"), names: list[str] | None = None) -> dict:
+def describe(
+    motion: Motion, *, sides: tuple[str, ...] = ("left", "right"), names: list[str] | None = None
+) -> dict[str, Any]:
     """The inspect report of ``motion`` as plain JSON-able data."""
     units = motion.guess_units()
     joints = []
@@ -89,9 +91,10 @@ def describe(motion: Any, *, sides: tuple[str, ...] = ("left", "right"), names: 
             }
         )
     arms: dict[str, Any] = {}
+    explicit = (names[0], names[1], names[2]) if names else None  # argparse gives exactly 3 (nargs=3)
     for side in sides:
         try:
-            chain = motion.arm_points(side, names=tuple(names) if names else None)
+            chain = motion.arm_points(side, names=explicit)
         except BvhError as exc:
             arms[side] = {"error": exc.message}
             continue
@@ -127,7 +130,7 @@ def describe(motion: Any, *, sides: tuple[str, ...] = ("left", "right"), names: 
     }
 
 
-def format_text(report: dict) -> str:
+def format_text(report: dict[str, Any]) -> str:
     """The human-readable form of :func:`describe`'s report."""
     lines = []
     name = Path(report["file"]).name if report["file"] else "<bvh>"

@@ -19,20 +19,22 @@ import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from retarget.cli import print_json
+import retarget
+from retarget.arm import Arm
+from retarget.bvh import DEMO_CLIP
+from retarget.bvh.motion import Motion
+from retarget.cli import EXIT_INTERRUPTED, print_json
 from retarget.cli._arm import add_arm_arguments, load_arm_option
 from retarget.cli._bus import add_bus_arguments, build_bus, check_bus_options, sigint_stops
+from retarget.control import ControlLoop, LoopConfig, TickRecord
 from retarget.control.bus import connected
+from retarget.control.clock import Clock, MonotonicClock, VirtualClock
+from retarget.control.telemetry import TelemetryWriter
 from retarget.errors import ConfigError
-
-if TYPE_CHECKING:
-    from retarget.arm import Arm
-    from retarget.bvh.motion import Motion
-    from retarget.control import ControlLoop, LoopConfig, TickRecord
-    from retarget.control.clock import Clock
-    from retarget.mapping import Targets
+from retarget.mapping import Targets, retarget_targets
+from retarget.mapping.config import MappingConfig
 
 EXAMPLES = """\
 examples:
@@ -111,13 +113,8 @@ class Inputs:
 
 def load_inputs(args: argparse.Namespace) -> Inputs:
     """Load the clip and the arm, build the mapping from the arm file + flags, and map every frame."""
-    import retarget
-    from retarget.mapping import retarget_targets
-    from retarget.mapping.config import MappingConfig
 
     if args.clip is None:
-        from retarget.bvh import DEMO_CLIP
-
         clip = Path(DEMO_CLIP)
     else:
         clip = Path(args.clip)
@@ -132,41 +129,45 @@ def load_inputs(args: argparse.Namespace) -> Inputs:
         "floor": args.floor,
         "orientation_weight": args.orientation_weight,
     }
-    config = MappingConfig.from_table(arm.mapping, path=arm.source, overrides=_flag_names(overrides))
+    config = MappingConfig.from_table(arm.mapping, path=arm.source, overrides=_checked_overrides(overrides))
     motion = retarget.load_bvh(clip)
     targets = retarget_targets(motion, arm, config)
     return Inputs(clip=clip, motion=motion, arm=arm, targets=targets)
 
 
-def _flag_names(overrides: dict[str, Any]) -> dict[str, Any]:
-    """Validate flag values one by one so an error names the flag (``--floor``), not the mapping key."""
-    from retarget.mapping.config import MappingConfig
-
-    out = {}
-    for name, value in overrides.items():
-        if value is None:
-            continue
-        try:
-            MappingConfig.from_table({}, overrides={name: value})
-        except ConfigError as exc:
-            raise ConfigError(exc.message, key="--" + name.replace("_", "-"), value=value) from None
-        out[name] = value
-    return out
+def _checked_overrides(overrides: dict[str, Any]) -> dict[str, Any]:
+    """The flags that were given, checked alone first: a bad one is the flag's error (``mapping.floor`` with no
+    file, which the CLI prints as ``--floor``), never the arm file's."""
+    given = {name: value for name, value in overrides.items() if value is not None}
+    MappingConfig.from_table({}, overrides=given)
+    return given
 
 
-def number(text: str | None, *, option: str, integer: bool = False) -> float | int | None:
-    """An option's text -> float (or int); ConfigError naming the option."""
+def number(text: str, *, option: str) -> float:
+    """An option's text -> float; ConfigError naming the option."""
+    try:
+        return float(text)
+    except ValueError:
+        raise ConfigError("Expected a number", key=option, value=text) from None
+
+
+def optional_number(text: str | None, *, option: str) -> float | None:
+    """:func:`number`, or None for an option that was not given."""
+    return None if text is None else number(text, option=option)
+
+
+def optional_count(text: str | None, *, option: str) -> int | None:
+    """An option's text -> int, or None when not given; ConfigError naming the option."""
     if text is None:
         return None
     try:
-        return int(text) if integer else float(text)
+        return int(text)
     except ValueError:
-        raise ConfigError(f"Expected {'an integer' if integer else 'a number'}", key=option, value=text) from None
+        raise ConfigError("Expected an integer", key=option, value=text) from None
 
 
 def loop_config(args: argparse.Namespace, motion: Motion, **extra: Any) -> LoopConfig:
     """A :class:`~retarget.control.LoopConfig` from the shared options."""
-    from retarget.control import LoopConfig
 
     return LoopConfig(
         rate=number(args.rate, option="--rate"),
@@ -182,7 +183,7 @@ def loop_config(args: argparse.Namespace, motion: Motion, **extra: Any) -> LoopC
 
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
-    parser = subparsers.add_parser(
+    parser: argparse.ArgumentParser = subparsers.add_parser(
         "replay",
         help="play a BVH clip's arm motion on an arm (simulated by default)",
         description=__doc__.split("\n\n")[0].split(": ", 1)[1],
@@ -226,10 +227,6 @@ def _progress_printer(loop: ControlLoop) -> Callable[[TickRecord], None]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from retarget.cli import EXIT_INTERRUPTED
-    from retarget.control import ControlLoop
-    from retarget.control.clock import MonotonicClock, VirtualClock
-    from retarget.control.telemetry import TelemetryWriter
 
     check_bus_options(args)
     if args.dry_run and args.port is not None:
@@ -239,7 +236,7 @@ def run(args: argparse.Namespace) -> int:
         args,
         inputs.motion,
         loop=args.loop,
-        max_ticks=number(args.max_ticks, option="--max-ticks", integer=True),
+        max_ticks=optional_count(args.max_ticks, option="--max-ticks"),
         lead_in_speed=number(args.lead_in, option="--lead-in"),
     )
     setup = None if args.dry_run else build_bus(args, inputs.arm, config)

@@ -18,20 +18,22 @@ import argparse
 import math
 import sys
 import threading
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from retarget.cli import EXIT_UNREACHED, print_json
+from retarget.arm import Arm
+from retarget.cli import EXIT_INTERRUPTED, EXIT_UNREACHED, print_json
 from retarget.cli._arm import add_arm_arguments, load_arm_option
-from retarget.cli._bus import add_bus_arguments, build_bus, check_bus_options, sigint_stops
+from retarget.cli._bus import BusSetup, add_bus_arguments, build_bus, check_bus_options, sigint_stops
+from retarget.cli.options import OPTIONS
+from retarget.cli.replay import number, optional_count, optional_number
+from retarget.cli.tui import Jog, KeySource, TerminalUI
 from retarget.control.bus import connected
+from retarget.control.loop import LoopConfig, TickRecord
+from retarget.control.telemetry import TelemetryWriter
 from retarget.errors import ConfigError
-
-if TYPE_CHECKING:
-    from retarget.arm import Arm
-    from retarget.control.loop import TickRecord
-    from retarget.teleop import Follower, TeleopResult
-    from retarget.teleop.gate import BasePose, TargetGate
-    from retarget.teleop.sources import Source
+from retarget.teleop import Follower, TeleopResult, run_teleop, tool_point
+from retarget.teleop.gate import BasePose, TargetBounds, TargetGate
+from retarget.teleop.sources import OneShotSource, Source, StdinSource, UdpSource, parse_address
 
 DEFAULT_UDP_TIMEOUT = 1.0  #: s, the dead-man timeout of --udp unless --timeout says otherwise
 DEFAULT_UDP_MAX_LAG = 1.0  #: s, --udp skips targets this far behind the newest unless --max-lag says otherwise
@@ -50,7 +52,7 @@ examples:
 
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
-    parser = subparsers.add_parser(
+    parser: argparse.ArgumentParser = subparsers.add_parser(
         "teleop",
         help="move the tool point to a target: one point, a stream on stdin/UDP, or keys",
         description=__doc__.split("\n\n")[0].split(": ", 1)[1] + "\n\n" + "\n\n".join(__doc__.split("\n\n")[1:]),
@@ -109,7 +111,6 @@ def _numbers(text: str | None, *, option: str, count: tuple[int, ...]) -> list[f
 
 def _check_options(args: argparse.Namespace) -> dict[str, Any]:
     """Validate the option values (ConfigError naming the option); returns the parsed numbers."""
-    from retarget.cli.replay import number
 
     check_bus_options(args)
     if args.rpy is not None and args.to is None:
@@ -122,9 +123,9 @@ def _check_options(args: argparse.Namespace) -> dict[str, Any]:
         "max_speed": number(args.max_speed, option="--max-speed"),
         "tolerance": number(args.tolerance, option="--tolerance"),
         "margin": number(args.margin, option="--margin"),
-        "max_bytes": number(args.max_bytes, option="--max-bytes", integer=True),
-        "timeout": number(args.timeout, option="--timeout"),
-        "max_lag": number(args.max_lag, option="--max-lag"),
+        "max_bytes": optional_count(args.max_bytes, option="--max-bytes"),
+        "timeout": optional_number(args.timeout, option="--timeout"),
+        "max_lag": optional_number(args.max_lag, option="--max-lag"),
         "box": _numbers(args.box, option="--box", count=(6,)),
         "base_pose": _numbers(args.base_pose, option="--base-pose", count=(3, 6)),
     }
@@ -134,7 +135,7 @@ def _check_options(args: argparse.Namespace) -> dict[str, Any]:
     for key in ("tolerance", "timeout", "max_lag"):
         value = out[key]
         if value is not None and not (value > 0 and value < float("inf")):
-            raise ConfigError("Expected a number > 0", key="--" + key.replace("_", "-"), value=value)
+            raise ConfigError("Expected a number > 0", key=OPTIONS[key], value=value)
     if not out["max_speed"] > 0:
         raise ConfigError("Expected a speed > 0 m/s ('inf' for none)", key="--max-speed", value=out["max_speed"])
     if not out["max_bytes"] >= 1:
@@ -143,12 +144,8 @@ def _check_options(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _gate(args: argparse.Namespace, arm: Arm, clock: Any, opts: dict[str, Any]) -> TargetGate:
-    from retarget.teleop.gate import BasePose, TargetBounds, TargetGate
 
-    try:
-        bounds = TargetBounds.for_arm(arm, margin=opts["margin"], box=opts["box"])
-    except ConfigError as exc:
-        raise ConfigError(exc.message, key=exc.key if exc.key == "--box" else "--margin", value=exc.value) from None
+    bounds = TargetBounds.for_arm(arm, margin=opts["margin"], box=opts["box"])
     pose = None
     if args.frame == "world":
         values = opts["base_pose"] or [0.0, 0.0, 0.0]
@@ -157,7 +154,6 @@ def _gate(args: argparse.Namespace, arm: Arm, clock: Any, opts: dict[str, Any]) 
 
 
 def _source(args: argparse.Namespace, gate: TargetGate) -> Source:
-    from retarget.teleop.sources import OneShotSource, StdinSource, UdpSource, parse_address
 
     if args.to is not None:
         return OneShotSource(gate, args.to, rpy=args.rpy)
@@ -190,25 +186,20 @@ def _name(args: argparse.Namespace) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from retarget.cli import EXIT_INTERRUPTED
-    from retarget.cli.replay import number
-    from retarget.control.loop import LoopConfig
-    from retarget.control.telemetry import TelemetryWriter
-    from retarget.teleop import Follower, run_teleop
 
     opts = _check_options(args)
     config = LoopConfig(
         rate=number(args.rate, option="--rate"),
         velocity_scale=number(args.velocity_scale, option="--velocity-scale"),
-        max_ticks=number(args.max_ticks, option="--max-ticks", integer=True),
+        max_ticks=optional_count(args.max_ticks, option="--max-ticks"),
         ik_tolerance=min(1e-3, opts["tolerance"] / 2),  # a tight --tolerance tightens the IK too
     )
     if args.interactive and not (sys.stdin.isatty() and sys.stdout.isatty()):
         raise ConfigError("--interactive needs a terminal on stdin and stdout", key="--interactive", value=True)
     arm = load_arm_option(args)
     setup = build_bus(args, arm, config)
-    source = None
-    telemetry = None
+    source: Source | None = None
+    telemetry: TelemetryWriter | None = None
     stop = threading.Event()
     try:
         gate = _gate(args, arm, setup.clock, opts)
@@ -218,7 +209,7 @@ def run(args: argparse.Namespace) -> int:
             out = sys.stdout if args.telemetry == "-" else args.telemetry
             telemetry = TelemetryWriter(out, arm.joint_names).open()
         with sigint_stops(stop.set), connected(setup.bus):
-            if args.interactive:
+            if source is None:
                 result = _interactive(arm, setup, gate, config, opts, stop, telemetry)
             else:
                 follower = Follower(
@@ -272,7 +263,7 @@ def _report(args: argparse.Namespace, result: TeleopResult, pose: BasePose | Non
             doc["reached_world_m"] = [round(float(v), 6) for v in pose.to_world(result.reached)]
         print_json({**s.to_dict(), "teleop": doc})
         return
-    if result.target is None:
+    if result.target is None or result.residual is None:
         print("no target received", file=sys.stderr)
         return
     r, t = result.reached, result.target
@@ -288,12 +279,17 @@ def _report(args: argparse.Namespace, result: TeleopResult, pose: BasePose | Non
     )
 
 
-def _interactive(arm, setup, gate, config, opts, stop, telemetry) -> TeleopResult:
+def _interactive(
+    arm: Arm,
+    setup: BusSetup,
+    gate: TargetGate,
+    config: LoopConfig,
+    opts: dict[str, Any],
+    stop: threading.Event,
+    telemetry: TelemetryWriter | None,
+) -> TeleopResult:
     """The curses UI around the loop: keys feed a KeySource, the screen is drawn from on_tick."""
     import curses
-
-    from retarget.cli.tui import Jog, KeySource, TerminalUI
-    from retarget.teleop import Follower, run_teleop, tool_point
 
     q0 = setup.bus.read_positions()
     jog = Jog(target=tool_point(arm, q0), home=tool_point(arm, arm.home), bounds=gate.bounds)

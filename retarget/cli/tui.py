@@ -17,17 +17,15 @@ from __future__ import annotations
 import enum
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
-from retarget.teleop.gate import Target, TargetBounds, TargetRejected
+from retarget.arm import Arm
+from retarget.control.loop import TickRecord
+from retarget.teleop import tool_point
+from retarget.teleop.gate import Target, TargetBounds, TargetGate, TargetRejected
 from retarget.teleop.sources import Source
-
-if TYPE_CHECKING:
-    from retarget.arm import Arm
-    from retarget.control.loop import TickRecord
-    from retarget.teleop.gate import TargetGate
 
 __all__ = ["Action", "Jog", "KeySource", "TerminalUI", "KEYS"]
 
@@ -170,8 +168,6 @@ class TerminalUI:
     def __call__(self, record: TickRecord) -> None:
         self.poll_keys()
         if record.time >= self._next_draw:
-            from retarget.teleop import tool_point
-
             self._next_draw = record.time + 0.1
             q = record.q_present if record.q_present is not None else record.q_cmd
             self.reached = tool_point(self.arm, q)

@@ -92,7 +92,7 @@ def test_urdf_with_tip(capsys, tmp_path):
     )
     (tmp_path / "two.servos.toml").write_text("[joints.j1]\nservos = [{ id = 7, model = 'XL330-M288' }]\n")
     code, _, err = run(capsys, str(tmp_path / "two.urdf"))
-    assert code == 2 and "cannot tell the tip link: leaves c, d; give tip=" in err
+    assert code == 2 and "cannot tell the tip link: leaves c, d; name one" in err
     code, out, _ = run(capsys, str(tmp_path / "two.urdf"), "--tip", "d", "--json")
     report = json.loads(out)
     assert code == 0 and report["tool_xyz"] == [0.0, 0.3, 0.0] and report["servo_ids"] == [7]

@@ -37,7 +37,7 @@ servos = [{ id = 3, model = "XL430-W250" }]
 [joints.wrist]
 servos = [{ id = 4, model = "XL430-W250" }]
 """
-AMBIGUOUS = "--tip: cannot tell the tip link: leaves camera_link, tool_link; give --tip LINK"
+AMBIGUOUS = "--tip: cannot tell the tip link: leaves camera_link, tool_link; name one"
 
 
 @pytest.fixture
