@@ -20,6 +20,7 @@ import time
 import numpy as np
 from dynamixel_sdk import COMM_SUCCESS, GroupSyncRead, GroupSyncWrite, PacketHandler
 
+from drivers.control_table import common_register
 from drivers.dynamixel_bus import DynamixelBus
 from drivers.port import open_port
 from retarget.arm.load import load_arm
@@ -27,6 +28,7 @@ from retarget.control.bus import ShutdownMode
 
 TARGET_RATIO = 1.5  #: the driver may cost at most this many times the raw SDK calls per tick
 URL = "sim://wx250s?rdt=0"  #: Return Delay Time 0 on both sides, as the driver configures it
+TORQUE, GOAL, PRESENT = (common_register(n).address for n in ("Torque Enable", "Goal Position", "Present Position"))
 
 
 def _stats(samples: list[float]) -> tuple[float, float]:
@@ -40,9 +42,9 @@ def bench_raw(arm, ticks: int, *, fast: bool) -> list[float]:
     ph = PacketHandler(2.0)
     try:
         for i in ids:  # torque on, or the goals go nowhere
-            ph.write1ByteTxRx(port, i, 64, 1)
-        writer = GroupSyncWrite(port, ph, 116, 4)
-        reader = GroupSyncRead(port, ph, 132, 4)
+            ph.write1ByteTxRx(port, i, TORQUE, 1)
+        writer = GroupSyncWrite(port, ph, GOAL, 4)
+        reader = GroupSyncRead(port, ph, PRESENT, 4)
         for i in ids:
             writer.addParam(i, [0, 8, 0, 0])
             reader.addParam(i)
@@ -57,10 +59,10 @@ def bench_raw(arm, ticks: int, *, fast: bool) -> list[float]:
             result = reader.fastSyncRead() if fast else reader.txRxPacket()
             if result != COMM_SUCCESS:
                 raise RuntimeError(ph.getTxRxResult(result))
-            _ = [reader.getData(i, 132, 4) for i in ids]
+            _ = [reader.getData(i, PRESENT, 4) for i in ids]
             times.append(time.perf_counter() - t0)
         for i in ids:
-            ph.write1ByteTxRx(port, i, 64, 0)
+            ph.write1ByteTxRx(port, i, TORQUE, 0)
         return times
     finally:
         port.closePort()

@@ -16,10 +16,11 @@ import argparse
 import statistics
 import time
 
-import serial
 from dynamixel_sdk import COMM_SUCCESS, GroupSyncRead, GroupSyncWrite, PacketHandler, PortHandler
 
 import sim
+from drivers.control_table import common_register
+from drivers.port import UrlPortHandler  # the SDK port on any pyserial URL, as the driver opens it
 from retarget.control.clock import MonotonicClock, VirtualClock
 from sim.faults import Faults, wire_time
 from sim.server import PtyServer
@@ -28,18 +29,7 @@ TARGET_INPROC_MS = 1.0  #: median tick over the in-process port (sync write + sy
 TARGET_PTY_MS = 2.0  #: median tick over a pty
 TARGET_WIRE_ERROR_US = 1.0  #: |modelled - computed| wire time per tick
 IDS = tuple(range(1, 7))
-GOAL, PRESENT = 116, 132
-
-
-class UrlPortHandler(PortHandler):
-    def setupPort(self, cflag_baud):  # noqa: N802 - the SDK's name
-        if self.is_open:
-            self.closePort()
-        self.ser = serial.serial_for_url(self.port_name, baudrate=self.baudrate, timeout=0)
-        self.is_open = True
-        self.ser.reset_input_buffer()
-        self.tx_time_per_byte = (1000.0 / self.baudrate) * 10.0
-        return True
+GOAL, PRESENT = (common_register(n).address for n in ("Goal Position", "Present Position"))
 
 
 def _stats(samples: list[float]) -> tuple[float, float]:

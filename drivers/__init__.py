@@ -6,7 +6,7 @@ Lazy exports, so ``import drivers`` stays cheap (the SDK and pyserial load on fi
     with DynamixelBus(retarget.load_arm("wx250s"), "/dev/ttyUSB0") as bus:
         q = bus.read_positions()
 
-Modules: ``control_table`` (registers as data), ``units`` (radians <-> ticks), ``port`` (PortHandler on any
+Modules: ``control_table`` (registers as data), ``units`` (radians <-> pulses), ``port`` (PortHandler on any
 pyserial URL), ``comm`` (transactions with retries), ``dynamixel_bus`` (the arm's bus), ``latency`` (FTDI
 latency timer), ``scan`` (find servos on a port), ``servo_plan`` (per-servo limits and settings).
 """

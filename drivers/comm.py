@@ -19,7 +19,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
-from dynamixel_sdk import COMM_SUCCESS, PacketHandler, PortHandler
+from dynamixel_sdk import COMM_SUCCESS, PacketHandler
 from dynamixel_sdk.robotis_def import (
     COMM_NOT_AVAILABLE,
     COMM_PORT_BUSY,
@@ -30,7 +30,8 @@ from dynamixel_sdk.robotis_def import (
     COMM_TX_FAIL,
 )
 
-from drivers.control_table import ALERT_BIT, BROADCAST_ID, Register, StatusError
+from drivers.control_table import ALERT_BIT, BROADCAST_ID, Instruction, Register, StatusError
+from drivers.port import PortHandler
 from retarget.errors import BusError
 
 log = logging.getLogger(__name__)
@@ -42,7 +43,7 @@ _PKT_LEN_H = 6
 _PKT_INSTRUCTION = 7
 _PKT_ERROR = 8
 _PKT_PARAMS = 9
-_INST_STATUS = 0x55
+_INST_STATUS = Instruction.STATUS.value
 _NOT_ALERT = 0xFF & ~ALERT_BIT  #: the error-number bits of a status ERR byte
 
 COMM_RESULT_NAMES: Mapping[int, str] = {
@@ -79,11 +80,11 @@ def status_error_name(error: int) -> str | None:
     return STATUS_ERROR_NAMES.get(number, f"status error {number}")
 
 
-class Reply(NamedTuple):
-    """One servo's status packet: its ERR byte and the data bytes it returned.
+class StatusPacket(NamedTuple):
+    """One servo's status packet, decoded: the servo's ID, its ERR byte and the data bytes it returned.
 
     Immutable; a NamedTuple rather than a frozen dataclass because every tick builds one per servo and this
-    is half the cost.
+    is half the cost.  (``sim.ScheduledReply`` is the simulator's side: the raw packet and when it arrives.)
     """
 
     id: int
@@ -93,6 +94,9 @@ class Reply(NamedTuple):
     @property
     def alert(self) -> bool:
         return bool(self.error & ALERT_BIT)
+
+
+Reply = StatusPacket  #: the first release's name
 
 
 @dataclass(frozen=True)
@@ -131,7 +135,7 @@ class Link:
         except Exception as exc:  # noqa: BLE001 - best effort before a shutdown sequence
             log.debug("clearPort failed: %s", exc)
 
-    def _note(self, reply: Reply) -> Reply:
+    def _note(self, reply: StatusPacket) -> StatusPacket:
         if reply.alert:
             self.alerts.add(reply.id)
         return reply
@@ -151,11 +155,11 @@ class Link:
         tx = [0] * 10
         tx[_PKT_ID] = dxl_id
         tx[_PKT_LEN_L] = 3
-        tx[_PKT_INSTRUCTION] = 0x01
+        tx[_PKT_INSTRUCTION] = Instruction.PING.value
         rx, result, error = self.ph.txRxPacket(self.port, tx)
         if result != COMM_SUCCESS:
             return None
-        self._note(Reply(dxl_id, error, b""))
+        self._note(StatusPacket(dxl_id, error, b""))
         return PingReply(dxl_id, rx[_PKT_PARAMS] | (rx[_PKT_PARAMS + 1] << 8), rx[_PKT_PARAMS + 2])
 
     def ping(self, dxl_id: int) -> PingReply | None:
@@ -168,7 +172,7 @@ class Link:
                 return reply
         return None
 
-    def read(self, dxl_id: int, address: int, length: int, *, what: str = "") -> Reply:
+    def read(self, dxl_id: int, address: int, length: int, *, what: str = "") -> StatusPacket:
         """READ ``length`` bytes at ``address`` with retries; BusError naming the servo when it fails."""
         last = ""
         for attempt in range(self.retries + 1):
@@ -176,7 +180,7 @@ class Link:
                 self._retrying(f"reading {what or address}", [dxl_id], last)
             data, result, error = self.ph.readTxRx(self.port, dxl_id, address, length)
             if result == COMM_SUCCESS and len(data) == length:
-                reply = self._note(Reply(dxl_id, error, bytes(data)))
+                reply = self._note(StatusPacket(dxl_id, error, bytes(data)))
                 name = status_error_name(error)
                 if name is None:
                     return reply
@@ -188,7 +192,7 @@ class Link:
     def read_register(self, dxl_id: int, reg: Register) -> int:
         return reg.decode(self.read(dxl_id, reg.address, reg.size, what=reg.name).data)
 
-    def write(self, dxl_id: int, address: int, data: bytes, *, what: str = "") -> Reply:
+    def write(self, dxl_id: int, address: int, data: bytes, *, what: str = "") -> StatusPacket:
         """WRITE with retries; BusError naming the servo and the status error ("access error") when it fails."""
         last = ""
         for attempt in range(self.retries + 1):
@@ -196,7 +200,7 @@ class Link:
                 self._retrying(f"writing {what or address}", [dxl_id], last)
             result, error = self.ph.writeTxRx(self.port, dxl_id, address, len(data), list(data))
             if result == COMM_SUCCESS:
-                reply = self._note(Reply(dxl_id, error, b""))
+                reply = self._note(StatusPacket(dxl_id, error, b""))
                 name = status_error_name(error)
                 if name is None:
                     return reply
@@ -258,9 +262,9 @@ class Link:
         if result != COMM_SUCCESS:
             raise self._fail(f"{comm_result_name(result)} (sync write at address {address})", param[:: size + 1])
 
-    def _collect(self, lengths: Mapping[int, int]) -> dict[int, Reply]:
+    def _collect(self, lengths: Mapping[int, int]) -> dict[int, StatusPacket]:
         """Status packets after a SYNC_READ or BULK_READ, matched by ID until all came or the timeout passed."""
-        replies: dict[int, Reply] = {}
+        replies: dict[int, StatusPacket] = {}
         while len(replies) < len(lengths):
             rx, result = self.ph.rxPacket(self.port, False)
             if result != COMM_SUCCESS:
@@ -273,16 +277,18 @@ class Link:
             if n_params != length:
                 log.debug("servo %d answered %d bytes instead of %d", dxl_id, n_params, length)
                 continue
-            replies[dxl_id] = self._note(Reply(dxl_id, rx[_PKT_ERROR], bytes(rx[_PKT_PARAMS : _PKT_PARAMS + length])))
+            replies[dxl_id] = self._note(
+                StatusPacket(dxl_id, rx[_PKT_ERROR], bytes(rx[_PKT_PARAMS : _PKT_PARAMS + length]))
+            )
         self.port.is_using = False
         return replies
 
-    def _collect_fast(self, ids: Sequence[int], length: int) -> dict[int, Reply] | None:
+    def _collect_fast(self, ids: Sequence[int], length: int) -> dict[int, StatusPacket] | None:
         """The one status packet after a FAST_SYNC_READ, split by servo; None when it failed as a whole."""
         raw, result, _ = self.ph.fastSyncReadRx(self.port, BROADCAST_ID, (length + 4) * len(ids))
         if result != COMM_SUCCESS or len(raw) < (length + 4) * len(ids) - 2:
             return None
-        replies: dict[int, Reply] = {}
+        replies: dict[int, StatusPacket] = {}
         alerts = self.alerts
         # slots of ERR ID DATA[length] CRC16 (the last CRC is the packet's); inline, on the tick path
         for i in range(0, (length + 4) * len(ids), length + 4):
@@ -292,7 +298,7 @@ class Link:
             error = raw[i]
             if error & ALERT_BIT:
                 alerts.add(dxl_id)
-            replies[dxl_id] = Reply(dxl_id, error, bytes(raw[i + 2 : i + 2 + length]))
+            replies[dxl_id] = StatusPacket(dxl_id, error, bytes(raw[i + 2 : i + 2 + length]))
         return replies
 
     def _send_read(self, read: GroupRead, fast: bool) -> bool:
@@ -308,7 +314,7 @@ class Link:
             return False
         return True
 
-    def _receive_read(self, read: GroupRead, fast: bool, sent: bool) -> dict[int, Reply] | None:
+    def _receive_read(self, read: GroupRead, fast: bool, sent: bool) -> dict[int, StatusPacket] | None:
         """The replies of one try of ``read`` whose instruction was ``sent``: by ID (missing IDs absent), or None
         when a FAST_SYNC_READ failed as a whole."""
         if fast:
@@ -339,7 +345,7 @@ class Link:
         finally:
             self.port.is_using = False
 
-    def receive_group_read(self, read: GroupRead, *, what: str = "") -> dict[int, Reply]:
+    def receive_group_read(self, read: GroupRead, *, what: str = "") -> dict[int, StatusPacket]:
         """The replies of a group read sent by :meth:`send_group_read`, with the retries of :meth:`group_read`."""
         ids = read.ids
         use_fast = read.fast
@@ -376,7 +382,7 @@ class Link:
         *,
         fast: bool = False,
         what: str = "",
-    ) -> dict[int, Reply]:
+    ) -> dict[int, StatusPacket]:
         """Read every servo of ``{id: (address, length)}`` in one group transaction, with retries.
 
         Uses SYNC_READ when all servos share the address and length (FAST_SYNC_READ first when ``fast``; a

@@ -19,7 +19,10 @@ EEPROM registers (address < 64) are writable only while Torque Enable is 0, else
 XL430-W250 has no current sensing: address 126 is "Present Load" (0.1 %) and it has no Current Limit
 and Goal Current; use :attr:`Model.load_register` for the name.
 
-This module imports nothing beyond the standard library, so ``drivers`` and ``sim`` may both use it.
+It also holds the one parser of servo ID lists (:func:`parse_ids`), for the scan and the simulator alike.
+
+This module imports nothing beyond the standard library and :mod:`retarget.errors`, so ``drivers`` and ``sim``
+may both use it (``sim`` imports nothing else of ``drivers``).
 """
 
 from __future__ import annotations
@@ -28,7 +31,10 @@ import enum
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
+from functools import cache
 from types import MappingProxyType
+
+from retarget.errors import ConfigError
 
 # --------------------------------------------------------------------------- protocol constants
 
@@ -86,7 +92,7 @@ class HardwareError(enum.IntFlag):
 
 def hardware_error_names(bits: int) -> tuple[str, ...]:
     """``0x24 -> ("overheating", "overload")``: the lower-case names of the set bits, lowest first."""
-    return tuple(e.name.lower() for e in HardwareError if bits & e.value)
+    return tuple(str(e.name).lower() for e in HardwareError if bits & e.value)
 
 
 class OperatingMode(enum.IntEnum):
@@ -133,11 +139,6 @@ RPM2_PER_ACCEL_UNIT = 214.577  #: Profile Acceleration unit (velocity-based prof
 VOLT_PER_UNIT = 0.1  #: Present Input Voltage and the voltage limits
 RETURN_DELAY_UNIT_US = 2  #: Return Delay Time (9) unit, microseconds
 RETURN_DELAY_UNIT_S = RETURN_DELAY_UNIT_US * 1e-6
-
-
-def rad_to_pulses(rad: float) -> float:
-    """Radians to position pulses (no centre, no rounding; ``drivers.units`` has the full joint encoding)."""
-    return rad / RAD_PER_PULSE
 
 
 # --------------------------------------------------------------------------- register and model types
@@ -414,33 +415,33 @@ def _indirect_rows(n_first: int, n_second: int) -> list[Register]:
     return rows
 
 
-def _model(
-    name: str, number: int, rows: Iterable[Register], **facts: object
-) -> Model:  # facts: the physical fields of Model
-    regs = {r.name: r for r in sorted(rows, key=lambda r: r.address)}
-    return Model(name=name, number=number, registers=MappingProxyType(regs), **facts)  # type: ignore[arg-type]
+def _registers(rows: Iterable[Register]) -> Mapping[str, Register]:
+    """A model's registers by name, in address order."""
+    return MappingProxyType({r.name: r for r in sorted(rows, key=lambda r: r.address)})
 
 
 _ALL_MODES = tuple(OperatingMode)
 
-XL430_W250 = _model(
+XL430_W250 = Model(
     "XL430-W250",
     1060,
-    [
-        *_x_series_common(
-            model_number=1060,
-            firmware=46,
-            baud_max=7,
-            drive_mode_max=13,
-            temperature_limit=72,
-            voltage=(140, 60, 60, 140),
-            velocity_limit=(265, 1023),
-            gains=(1000, 100, 4000, 0, 640),
-            shutdown=52,
-        ),
-        _row("Present Load", 126, 2, R, 0, -1000, 1000, signed=True, unit="0.1 %"),
-        *_indirect_rows(28, 28),
-    ],
+    _registers(
+        [
+            *_x_series_common(
+                model_number=1060,
+                firmware=46,
+                baud_max=7,
+                drive_mode_max=13,
+                temperature_limit=72,
+                voltage=(140, 60, 60, 140),
+                velocity_limit=(265, 1023),
+                gains=(1000, 100, 4000, 0, 640),
+                shutdown=52,
+            ),
+            _row("Present Load", 126, 2, R, 0, -1000, 1000, signed=True, unit="0.1 %"),
+            *_indirect_rows(28, 28),
+        ]
+    ),
     no_load_rpm=57.0,
     nominal_voltage=11.1,
     stall_torque=1.4,
@@ -455,24 +456,26 @@ XL430_W250 = _model(
     ),
 )
 
-XM430_W350 = _model(
+XM430_W350 = Model(
     "XM430-W350",
     1020,
-    [
-        *_x_series_common(
-            model_number=1020,
-            firmware=46,
-            baud_max=7,
-            drive_mode_max=13,
-            temperature_limit=80,
-            voltage=(160, 95, 95, 160),
-            velocity_limit=(200, 1023),
-            gains=(1920, 100, 0, 0, 800),
-            shutdown=52,
-        ),
-        *_current_rows(1193, "2.69 mA"),
-        *_indirect_rows(28, 28),
-    ],
+    _registers(
+        [
+            *_x_series_common(
+                model_number=1020,
+                firmware=46,
+                baud_max=7,
+                drive_mode_max=13,
+                temperature_limit=80,
+                voltage=(160, 95, 95, 160),
+                velocity_limit=(200, 1023),
+                gains=(1920, 100, 0, 0, 800),
+                shutdown=52,
+            ),
+            *_current_rows(1193, "2.69 mA"),
+            *_indirect_rows(28, 28),
+        ]
+    ),
     no_load_rpm=46.0,
     nominal_voltage=12.0,
     stall_torque=4.1,
@@ -482,25 +485,27 @@ XM430_W350 = _model(
     operating_modes=_ALL_MODES,
 )
 
-XL330_M288 = _model(
+XL330_M288 = Model(
     "XL330-M288",
     1200,
-    [
-        *_x_series_common(
-            model_number=1200,
-            firmware=46,
-            baud_max=6,
-            drive_mode_max=13,
-            temperature_limit=70,
-            voltage=(70, 35, 31, 70),
-            velocity_limit=(445, 2047),
-            gains=(1600, 180, 0, 0, 400),
-            shutdown=53,
-        ),
-        _row("PWM Slope", 62, 1, RW, 140, 1, 255, unit="1.977 mV/ms"),
-        *_current_rows(1750, "1 mA"),
-        *_indirect_rows(20, 0),
-    ],
+    _registers(
+        [
+            *_x_series_common(
+                model_number=1200,
+                firmware=46,
+                baud_max=6,
+                drive_mode_max=13,
+                temperature_limit=70,
+                voltage=(70, 35, 31, 70),
+                velocity_limit=(445, 2047),
+                gains=(1600, 180, 0, 0, 400),
+                shutdown=53,
+            ),
+            _row("PWM Slope", 62, 1, RW, 140, 1, 255, unit="1.977 mV/ms"),
+            *_current_rows(1750, "1 mA"),
+            *_indirect_rows(20, 0),
+        ]
+    ),
     no_load_rpm=103.0,
     nominal_voltage=5.0,
     stall_torque=0.52,
@@ -513,30 +518,32 @@ XL330_M288 = _model(
     table_size=228,
 )
 
-XM540_W270 = _model(
+XM540_W270 = Model(
     "XM540-W270",
     1120,
-    [
-        *_x_series_common(
-            model_number=1120,
-            firmware=46,
-            baud_max=7,
-            drive_mode_max=15,
-            temperature_limit=80,
-            voltage=(160, 95, 95, 160),
-            velocity_limit=(128, 1023),
-            gains=(1920, 100, 0, 0, 800),
-            shutdown=52,
-        ),
-        *_current_rows(2047, "2.69 mA"),
-        _row("External Port Mode 1", 56, 1, RW, 3, 0, 3),
-        _row("External Port Mode 2", 57, 1, RW, 3, 0, 3),
-        _row("External Port Mode 3", 58, 1, RW, 3, 0, 3),
-        _row("External Port Data 1", 152, 2, RW, 0),
-        _row("External Port Data 2", 154, 2, RW, 0),
-        _row("External Port Data 3", 156, 2, RW, 0),
-        *_indirect_rows(28, 28),
-    ],
+    _registers(
+        [
+            *_x_series_common(
+                model_number=1120,
+                firmware=46,
+                baud_max=7,
+                drive_mode_max=15,
+                temperature_limit=80,
+                voltage=(160, 95, 95, 160),
+                velocity_limit=(128, 1023),
+                gains=(1920, 100, 0, 0, 800),
+                shutdown=52,
+            ),
+            *_current_rows(2047, "2.69 mA"),
+            _row("External Port Mode 1", 56, 1, RW, 3, 0, 3),
+            _row("External Port Mode 2", 57, 1, RW, 3, 0, 3),
+            _row("External Port Mode 3", 58, 1, RW, 3, 0, 3),
+            _row("External Port Data 1", 152, 2, RW, 0),
+            _row("External Port Data 2", 154, 2, RW, 0),
+            _row("External Port Data 3", 156, 2, RW, 0),
+            *_indirect_rows(28, 28),
+        ]
+    ),
     no_load_rpm=30.0,
     nominal_voltage=12.0,
     stall_torque=10.6,
@@ -562,3 +569,57 @@ def model(name_or_number: str | int) -> Model:
         known = ", ".join(f"{m.name} ({m.number})" for m in MODELS.values())
         raise KeyError(f"Expected one of {known}, got {name_or_number!r}")
     return found
+
+
+@cache
+def common_register(name: str) -> Register:
+    """The register called ``name`` as every model that has it defines it (the same address and size).
+
+    For code that reads raw control-table memory without a model at hand: the simulator's hot path, group
+    reads planned once for a mixed arm.  KeyError when no model has it; ValueError when two models differ.
+    "Present Current" is at 126 on every model with current sensing; XL430-W250 has "Present Load" there.
+
+    >>> common_register("Goal Position").address, common_register("Goal Position").size
+    (116, 4)
+    """
+    found = {(m.registers[name].address, m.registers[name].size) for m in MODELS.values() if name in m.registers}
+    if not found:
+        raise KeyError(f"no model has a register {name!r}")
+    if len(found) > 1:
+        raise ValueError(f"{name!r} differs between models: (address, size) {sorted(found)}")
+    return next(m.registers[name] for m in MODELS.values() if name in m.registers)
+
+
+# --------------------------------------------------------------------------- servo ID lists
+
+
+def parse_ids(text: str) -> tuple[int, ...]:
+    """Servo IDs from ``"1-6"``, ``"1,3,5"`` or both (``"1-3,8"``): the IDs, ascending.
+
+    Each comma-separated part is one ID or an inclusive range ``LO-HI`` with ``LO <= HI``; spaces around
+    numbers are allowed; every ID is within 0..252 (:data:`MAX_ID`; 253.. are reserved, 254 is broadcast) and
+    appears once.  ConfigError with ``key="ids"`` otherwise, naming the bad part.
+
+    >>> parse_ids("1-3, 8")
+    (1, 2, 3, 8)
+    >>> parse_ids("250-253")
+    Traceback (most recent call last):
+    ...
+    retarget.errors.ConfigError: ids: Expected IDs within 0..252, low before high (got '250-253')
+    """
+    ids: list[int] = []
+    for raw in text.split(","):
+        part = raw.strip()
+        lo_text, dash, hi_text = part.partition("-")
+        try:
+            lo = int(lo_text)
+            hi = int(hi_text) if dash else lo
+        except ValueError:
+            raise ConfigError("Expected IDs like 1-6 or 1,3,5", key="ids", value=part or text) from None
+        if not 0 <= lo <= hi <= MAX_ID:
+            raise ConfigError(f"Expected IDs within 0..{MAX_ID}, low before high", key="ids", value=part)
+        ids.extend(range(lo, hi + 1))
+    if len(set(ids)) != len(ids):
+        repeated = ", ".join(str(i) for i in sorted(set(ids)) if ids.count(i) > 1)
+        raise ConfigError(f"Expected distinct IDs; repeated: {repeated}", key="ids", value=text)
+    return tuple(sorted(ids))

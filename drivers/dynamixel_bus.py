@@ -24,7 +24,7 @@ connect():
      Goal Position to its joint's present angle (so enabling torque does not jump), then torque on, all or
      nothing.  Present Position read with torque off counts whole turns; torque on in position mode resets it
      into 0..4095 (e-Manual, Present Position(132)), so the hold goal is the reading modulo 4096
-     (:func:`hold_tick`).
+     (:func:`hold_pulse`).
 
 Faults: a servo that stays silent after ``retries`` repeats, or raises a hardware alert, makes the bus refuse
 further goals and raises BusError naming it; close() (or leaving the ``with`` block) then runs the shutdown
@@ -33,8 +33,11 @@ Shutdown REST after a hardware error: joints with a faulted servo are not comman
 then torque goes off everywhere; a silent joint servo turns torque off at once (see ``_move_to_rest``).
 
 Direction is applied by the servo (Drive Mode bit 0), as Interbotix does: every servo of a joint gets the same
-register value ``2048 + offset + q / RAD_PER_TICK`` in the same SYNC_WRITE and a reversed servo turns its shaft
-the other way.  Tick limits are therefore computed in that register space for every servo.
+register value ``2048 + offset + q / RAD_PER_PULSE`` in the same SYNC_WRITE and a reversed servo turns its shaft
+the other way.  Position limits (pulses) are therefore computed in that register space for every servo.
+
+Units: joint angles in radians, speeds in rad/s, times in seconds; register values in the e-Manual's units
+(positions in pulses, 4096 per turn).  "Tick" is one control cycle (a write_goals and a read_positions).
 """
 
 from __future__ import annotations
@@ -50,28 +53,32 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from drivers import units
-from drivers.comm import GroupRead, Link, Reply
-from drivers.control_table import MODEL_BY_NUMBER, VOLT_PER_UNIT, hardware_error_names
+from drivers.comm import GroupRead, Link, StatusPacket
+from drivers.control_table import MODEL_BY_NUMBER, VOLT_PER_UNIT, common_register, hardware_error_names
 from drivers.latency import check_latency_timer
 from drivers.port import open_port
 from drivers.servo_plan import MAX_PROFILE_MS, Profile, ServoPlan, ServoSettings, plan_servos
+from retarget.arm.load import load_arm
 from retarget.control.bus import BusStatus, ShutdownMode, close_after_failure
 from retarget.control.clock import Clock, MonotonicClock
 from retarget.errors import BusError
 
 if TYPE_CHECKING:
-    from retarget.arm import Arm
+    from retarget.arm.model import Arm
 
 log = logging.getLogger(__name__)
 
 #: EEPROM block read once per servo at connect: Return Delay Time (9) .. Min Position Limit (52..55).
-_EEPROM_START = 9
-_EEPROM_END = 56
+_EEPROM_START = common_register("Return Delay Time").address
+_EEPROM_END = common_register("Min Position Limit").end
 #: RAM block of read_state: Present Current/Load (126) .. Present Temperature (146), the same on every X model.
-_STATE_START = 126
-_STATE_END = 147
+_STATE_START = common_register("Present Current").address  # XL430-W250 has Present Load at that address
+_STATE_END = common_register("Present Temperature").end
 _MAX_RECOVERIES = 3  #: reboots per servo and connect before a hardware error is final (recover=True)
-_GOAL_POSITION = 116  #: Goal Position, 4 bytes, the same address on every X model
+#: the registers every servo gets in one SYNC_WRITE: the same address and size on every X model
+_GOAL_POSITION = common_register("Goal Position")
+_PROFILE_ACCELERATION = common_register("Profile Acceleration")
+_PROFILE_VELOCITY = common_register("Profile Velocity")
 
 
 @dataclass(frozen=True)
@@ -87,7 +94,7 @@ class ServoState:
     temperature: np.ndarray  #: degC
 
     @classmethod
-    def decode(cls, servos: Sequence[ServoPlan], replies: Mapping[int, Reply]) -> ServoState:
+    def decode(cls, servos: Sequence[ServoPlan], replies: Mapping[int, StatusPacket]) -> ServoState:
         n = len(servos)
         pos, vel, cur, load, volt, temp = (np.full(n, np.nan) for _ in range(6))
         for k, s in enumerate(servos):
@@ -97,7 +104,7 @@ class ServoState:
                 reg = _s.model.register(name)
                 return reg.decode(_data[reg.address - _STATE_START : reg.end - _STATE_START])
 
-            pos[k] = units.ticks_to_rad(field("Present Position"), offset=s.offset)
+            pos[k] = units.pulses_to_rad(field("Present Position"), offset=s.offset)
             vel[k] = units.velocity_units_to_rad_s(field("Present Velocity"))
             if s.model.current_unit_ma is None:
                 load[k] = field("Present Load") / 1000.0
@@ -111,10 +118,15 @@ class ServoState:
 class DynamixelBus:
     """The servos of one arm on one Dynamixel bus.  See the module docstring for what connect() does.
 
+    Nothing is opened or sent until :meth:`connect` (or ``with``); the constructor only checks its arguments
+    (ValueError) and plans every servo from the arm description (ConfigError).  Bus failures raise BusError
+    naming the servos.
+
     Arguments (all tuning knobs keyword-only):
-        arm: the arm description (``retarget.load_arm``), or the name of a bundled one.
-        port: a device path or pyserial URL (``/dev/ttyUSB0``, ``COM3``, ``socket://h:p``, ``sim://wx250s``).
-        baud: the bus baud rate; default: the arm's.
+        arm: the arm description (``retarget.load_arm``), or the name or path it loads from.
+        port: a device path or pyserial URL (``/dev/ttyUSB0``, ``COM3``, ``socket://h:p``, ``sim://wx250s``);
+            required, there is no default port.
+        baud: the bus baud rate, bps; default: the arm's.
         shutdown: what close() does with the arm (HOLD, REST then torque off, OFF).
         retries: repeats of a failed transaction before it raises (per tick).
         return_delay_us: Return Delay Time written at connect (0..508 us, 2 us steps; servo default 500).
@@ -133,12 +145,22 @@ class DynamixelBus:
         fast_read: FAST_SYNC_READ for positions: True, False, or None = when every servo's firmware has it.
         check_latency: check (and lower) the FTDI latency timer of a /dev/ttyUSBn port.
         clock: the clock for waits (the REST move); a shared ``VirtualClock`` in tests.
+
+    On the simulated arm (``sim://wx250s``: every servo of the WidowX-250 at its rest pose; ``clock=virtual``
+    makes waiting for a reply cost no real time)::
+
+        >>> bus = DynamixelBus("wx250s", "sim://wx250s?clock=virtual", shutdown="off")
+        >>> with bus:                                  # connect: ping, configure, torque on
+        ...     q = bus.read_positions()               # (6,) rad, from the primary servos
+        ...     bus.write_goals(q + 0.05)              # one SYNC_WRITE, clamped to the joint limits
+        >>> bool(np.allclose(q, bus.arm.rest, atol=0.002)), bus.status().ticks, bus.connected
+        (True, 1, False)
     """
 
     def __init__(
         self,
         arm: Arm | str,
-        port: str = "sim://wx250s",
+        port: str,
         *,
         baud: int | None = None,
         shutdown: ShutdownMode | str = ShutdownMode.REST,
@@ -160,8 +182,6 @@ class DynamixelBus:
         clock: Clock | None = None,
     ):
         if isinstance(arm, str):
-            from retarget.arm.config import load_arm
-
             arm = load_arm(arm)
         self.arm = arm
         self.port_name = port
@@ -217,8 +237,8 @@ class DynamixelBus:
         lower = np.full(arm.n_joints, -np.inf)
         upper = np.full(arm.n_joints, np.inf)
         for s in js:
-            lower[s.joint] = max(lower[s.joint], float(units.ticks_to_rad(s.min_tick, offset=s.offset)))
-            upper[s.joint] = min(upper[s.joint], float(units.ticks_to_rad(s.max_tick, offset=s.offset)))
+            lower[s.joint] = max(lower[s.joint], float(units.pulses_to_rad(s.min_pulse, offset=s.offset)))
+            upper[s.joint] = min(upper[s.joint], float(units.pulses_to_rad(s.max_pulse, offset=s.offset)))
         self.lower = np.maximum(lower, arm.lower)  #: (n_joints,) rad, the clamp of write_goals
         self.upper = np.minimum(upper, arm.upper)
         self.max_step = arm.max_velocity * dt if dt is not None and step_limit else None
@@ -228,19 +248,19 @@ class DynamixelBus:
         self._goal_shape = (arm.n_joints,)
         self._clamp = tuple(zip(self.lower.tolist(), self.upper.tolist(), strict=True))  #: per joint (lo, hi) rad
         self._goal_plan = tuple(
-            (s.id, s.joint, units.CENTER_TICK + s.offset, s.min_tick, s.max_tick) for s in js
-        )  #: per joint servo: ID, joint, tick of 0 rad, tick limits
+            (s.id, s.joint, units.CENTER_PULSE + s.offset, s.min_pulse, s.max_pulse) for s in js
+        )  #: per joint servo: ID, joint, pulse of 0 rad, position limits (pulses)
         self._goal_packing = struct.Struct("<" + "Bi" * len(js))  #: SYNC_WRITE params: ID, signed 4-byte LE goal
         self._primary_plan = tuple(
-            (js[k].id, units.CENTER_TICK + js[k].offset) for k in self._primary_index
-        )  #: per joint: its primary servo's ID and tick of 0 rad
+            (js[k].id, units.CENTER_PULSE + js[k].offset) for k in self._primary_index
+        )  #: per joint: its primary servo's ID and pulse of 0 rad
 
         self._link: Link | None = None
         self._last_link: Link | None = None  #: keeps the counters readable after close
         self._torque = False
         self._faulted: str | None = None
         self._last_goal: list[float] | None = None  #: rad per joint, the goals last sent
-        self._ticks = 0
+        self._ticks = 0  #: control cycles (position reads) since connect
         self._hardware_errors: dict[int, tuple[str, ...]] = {}
         self._recoveries: dict[int, int] = {}  #: servo ID -> reboots since connect
         self._firmware: dict[int, int] = {}
@@ -271,7 +291,9 @@ class DynamixelBus:
             self.connect()
         return self
 
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None):
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
         if exc is None:
             self.close()
         else:  # a failing shutdown must not mask the error that ended the block
@@ -385,7 +407,7 @@ class DynamixelBus:
         self._ticks += 1
         return np.array(
             [
-                (int.from_bytes(replies[dxl_id].data, "little", signed=True) - zero) * units.RAD_PER_TICK
+                (int.from_bytes(replies[dxl_id].data, "little", signed=True) - zero) * units.RAD_PER_PULSE
                 for dxl_id, zero in self._primary_plan
             ]
         )
@@ -436,22 +458,22 @@ class DynamixelBus:
             raise BusError(f"bus is faulted ({self._faulted}); close it and connect again")
         # with torque off Present Position counts turns (a joint turned by hand past 180 deg reads 4196); torque on
         # in position mode resets it into 0..4095 (e-Manual, Present Position(132)): hold the single-turn angle
-        ticks = self._read_joint_ticks(check_active=False) % units.TICKS_PER_REV
-        self._check_shadows(ticks)
+        pulses = self._read_joint_pulses(check_active=False) % units.PULSES_PER_REV
+        self._check_shadows(pulses)
         primary = self._primary_index
-        q = np.clip(units.ticks_to_rad(ticks[primary], offset=self._servo_offset[primary]), self.lower, self.upper)
+        q = np.clip(units.pulses_to_rad(pulses[primary], offset=self._servo_offset[primary]), self.lower, self.upper)
         self._send_goals(link, q.tolist())  # every servo of a joint gets its primary's angle, as write_goals will
         if self._gripper is not None:
             g = self._gripper
-            t = units.signed32(link.read_register(g.id, g.model.register("Present Position")))
-            link.write_register(g.id, g.model.register("Goal Position"), hold_tick(t, g.min_tick, g.max_tick))
-        enabled: list[ServoPlan] = []
+            p = units.signed32(link.read_register(g.id, g.model.register("Present Position")))
+            link.write_register(g.id, g.model.register("Goal Position"), hold_pulse(p, g.min_pulse, g.max_pulse))
+        turned_on: list[ServoPlan] = []
         try:
             for s in self.servos:
-                enabled.append(s)  # before the write: a servo may act on it and still lose its reply
+                turned_on.append(s)  # before the write: a servo may act on it and still lose its reply
                 link.write_register(s.id, s.model.register("Torque Enable"), 1)
         except BaseException:
-            for s in enabled:  # all or nothing: an arm half under torque is worse than a limp one
+            for s in turned_on:  # all or nothing: an arm half under torque is worse than a limp one
                 try:
                     link.write_register(s.id, s.model.register("Torque Enable"), 0)
                 except BusError as exc:
@@ -465,9 +487,9 @@ class DynamixelBus:
     def read_gripper(self) -> float:
         """Present gripper shaft angle, radians (its own READ)."""
         g = self._require_gripper()
-        ticks = units.signed32(self.link.read_register(g.id, g.model.register("Present Position")))
+        pulses = units.signed32(self.link.read_register(g.id, g.model.register("Present Position")))
         self._raise_alerts()
-        return float(units.ticks_to_rad(ticks, offset=g.offset))
+        return float(units.pulses_to_rad(pulses, offset=g.offset))
 
     def write_gripper(self, angle: float) -> None:
         """Gripper goal, radians of the servo shaft, clamped to the gripper limits (its own WRITE)."""
@@ -475,8 +497,8 @@ class DynamixelBus:
         link = self._require_active()
         if not math.isfinite(angle):
             raise ValueError(f"Expected a finite gripper angle in radians, got {angle}")
-        tick = int(np.clip(units.rad_to_ticks(angle, offset=g.offset), g.min_tick, g.max_tick))
-        link.write_register(g.id, g.model.register("Goal Position"), tick)
+        goal = int(np.clip(units.rad_to_pulses(angle, offset=g.offset), g.min_pulse, g.max_pulse))
+        link.write_register(g.id, g.model.register("Goal Position"), goal)
         self._raise_alerts()
 
     # ------------------------------------------------------------------ internals
@@ -494,18 +516,18 @@ class DynamixelBus:
 
     def _send_goals(self, link: Link, goal: Sequence[float]) -> None:
         """One SYNC_WRITE of Goal Position: each servo gets its joint's ``goal`` (rad, finite), encoded as
-        ``round(2048 + offset + q / RAD_PER_TICK)`` (as ``units.rad_to_ticks``) and clipped to its tick limits."""
+        ``round(2048 + offset + q / RAD_PER_PULSE)`` (as ``units.rad_to_pulses``) and clipped to its position limits."""
         values: list[int] = []
         for dxl_id, joint, zero, lo, hi in self._goal_plan:
-            t = round(zero + goal[joint] / units.RAD_PER_TICK)
-            values += (dxl_id, lo if t < lo else hi if t > hi else t)
-        link.sync_write_param(_GOAL_POSITION, 4, list(self._goal_packing.pack(*values)))
+            p = round(zero + goal[joint] / units.RAD_PER_PULSE)
+            values += (dxl_id, lo if p < lo else hi if p > hi else p)
+        link.sync_write_param(_GOAL_POSITION.address, _GOAL_POSITION.size, list(self._goal_packing.pack(*values)))
 
-    def _check_shadows(self, ticks: np.ndarray) -> None:
+    def _check_shadows(self, pulses: np.ndarray) -> None:
         """Refuse torque when a shadow disagrees with its primary: under torque the two would fight (overload)."""
-        q = units.ticks_to_rad(ticks, offset=self._servo_offset)
+        q = units.pulses_to_rad(pulses, offset=self._servo_offset)
         q_primary = q[self._primary_index][self._servo_joint]
-        off = np.abs((q - q_primary + np.pi) % (2.0 * np.pi) - np.pi)  # on the circle: 4095 and 1 are 2 ticks apart
+        off = np.abs((q - q_primary + np.pi) % (2.0 * np.pi) - np.pi)  # on the circle: 4095 and 1 are 2 pulses apart
         bad = [s for s, d in zip(self._joint_servos, off, strict=True) if d > self.shadow_tolerance]
         if bad:
             detail = ", ".join(
@@ -519,25 +541,28 @@ class DynamixelBus:
                 ids=[s.id for s in bad],
             )
 
-    def _read_joint_ticks(self, *, check_active: bool = True) -> np.ndarray:
-        """Present Position of every joint servo ``(n_joint_servos,) int64`` ticks, in ``_joint_servos`` order."""
+    def _read_joint_pulses(self, *, check_active: bool = True) -> np.ndarray:
+        """Present Position of every joint servo ``(n_joint_servos,) int64`` pulses, in ``_joint_servos`` order."""
         replies = self._read_joint_replies(check_active=check_active)
         return np.array(
             [int.from_bytes(replies[dxl_id].data, "little", signed=True) for dxl_id in self._position_requests],
             dtype=np.int64,
         )
 
-    def _read_joint_replies(self, *, check_active: bool = True) -> dict[int, Reply]:
+    def _read_joint_replies(self, *, check_active: bool = True) -> dict[int, StatusPacket]:
         """Present Position replies of every joint servo (shadows too, so their alerts are seen), by ID."""
         link = self._require_active() if check_active else self.link
         self._pending = link.send_group_read(self._position_reads[self._use_fast])
         return self._receive_joint_replies(link)
 
-    def _receive_joint_replies(self, link: Link) -> dict[int, Reply]:
+    def _receive_joint_replies(self, link: Link) -> dict[int, StatusPacket]:
         """The replies of the position read in flight (``_pending``).  It stays in flight when a Ctrl-C cuts
         this short, so that close() waits for its replies before it sends anything."""
+        pending = self._pending
+        if pending is None:  # pragma: no cover - every caller sent the read first
+            raise BusError("no position read in flight")
         try:
-            replies = link.receive_group_read(self._pending, what="Present Position")  # type: ignore[arg-type]
+            replies = link.receive_group_read(pending, what="Present Position")
         except BusError as exc:
             self._pending = None
             self._faulted = str(exc)
@@ -674,7 +699,7 @@ class DynamixelBus:
         """Goal Position = the servo's present position (single-turn, clipped to its limits), then torque on."""
         link = self.link
         present = units.signed32(link.read_register(s.id, s.model.register("Present Position")))
-        link.write_register(s.id, s.model.register("Goal Position"), hold_tick(present, s.min_tick, s.max_tick))
+        link.write_register(s.id, s.model.register("Goal Position"), hold_pulse(present, s.min_pulse, s.max_pulse))
         link.write_register(s.id, s.model.register("Torque Enable"), 1)
 
     def _torque_off_all(self) -> None:
@@ -709,7 +734,7 @@ class DynamixelBus:
         link = self.link
         self._faulted = None  # a fault stops goals from the caller, not the shutdown sequence
         rest = np.clip(self.arm.rest, self.lower, self.upper)
-        ticks = self._read_ticks_for_shutdown()
+        pulses = self._read_pulses_for_shutdown()
         held = self._faulted_joints()
         if held:
             log.warning(
@@ -722,35 +747,35 @@ class DynamixelBus:
         if not moving:
             return
         servos = [s for s in self._joint_servos if s.joint not in held]
-        present = self._primary_angles(ticks)
+        present = self._primary_angles(pulses)
         if self.profile is Profile.TIME:
             # ramps of a quarter of the move each: the cruise speed is distance / (0.75 * duration)
             duration = float(np.max(np.abs(rest - present)[moving])) / (0.75 * self.rest_speed)
-            pv = int(min(units.seconds_to_ms(duration), MAX_PROFILE_MS))
+            pv = min(int(units.seconds_to_ms(duration)), MAX_PROFILE_MS)
             values = dict.fromkeys((s.id for s in servos), pv)
             accel = dict.fromkeys(values, pv // 4)
-            link.sync_write(108, 4, {i: _u32(v) for i, v in accel.items()})
+            link.sync_write(_PROFILE_ACCELERATION.address, _PROFILE_ACCELERATION.size, _u32s(accel))
         else:
             values = {
                 s.id: int(units.rad_s_to_velocity_units(min(self.rest_speed, self.arm.joints[s.joint].max_velocity)))
                 for s in servos
             }
-        link.sync_write(112, 4, {i: _u32(v) for i, v in values.items()})
+        link.sync_write(_PROFILE_VELOCITY.address, _PROFILE_VELOCITY.size, _u32s(values))
         goals = {}  # as _send_goals encodes them, for the commanded joints' servos only
         for s in servos:
-            goals[s.id] = _u32(_clip_tick(round(units.CENTER_TICK + s.offset + rest[s.joint] / units.RAD_PER_TICK), s))
-        link.sync_write(_GOAL_POSITION, 4, goals)
+            goals[s.id] = _clip_pulse(round(units.CENTER_PULSE + s.offset + rest[s.joint] / units.RAD_PER_PULSE), s)
+        link.sync_write(_GOAL_POSITION.address, _GOAL_POSITION.size, _u32s(goals))
         start = self.clock.now()
         while True:
-            ticks = self._read_ticks_for_shutdown()
+            pulses = self._read_pulses_for_shutdown()
             newly = self._faulted_joints() - held
             if newly:
-                self._freeze_joints(newly, ticks)
+                self._freeze_joints(newly, pulses)
                 held |= newly
                 moving = [j for j in moving if j not in newly]
                 if not moving:
                     return
-            err = float(np.max(np.abs(self._primary_angles(ticks) - rest)[moving]))
+            err = float(np.max(np.abs(self._primary_angles(pulses) - rest)[moving]))
             if err <= self.rest_tolerance:
                 log.info("%s reached its rest pose in %.2f s", self.arm.name, self.clock.now() - start)
                 return
@@ -761,8 +786,8 @@ class DynamixelBus:
                 return
             self.clock.sleep_until(self.clock.now() + 0.05)
 
-    def _read_ticks_for_shutdown(self) -> np.ndarray:
-        """Present Position of every joint servo ``(n_joint_servos,) int64`` ticks, in ``_joint_servos`` order,
+    def _read_pulses_for_shutdown(self) -> np.ndarray:
+        """Present Position of every joint servo ``(n_joint_servos,) int64`` pulses, in ``_joint_servos`` order,
         without raising on alerts: each newly alerting servo's Hardware Error Status is read and recorded in
         ``_hardware_errors`` (the shutdown sequence's view of which servos are faulted).  A silent servo raises."""
         link = self.link
@@ -785,10 +810,10 @@ class DynamixelBus:
         """Joints with at least one servo in hardware error."""
         return {s.joint for s in self._joint_servos if s.id in self._hardware_errors}
 
-    def _freeze_joints(self, joints: set[int], ticks: np.ndarray) -> None:
+    def _freeze_joints(self, joints: set[int], pulses: np.ndarray) -> None:
         """Goal = own present position for the healthy servos of ``joints``: they stop where they are."""
         hold = {
-            s.id: _clip_tick(int(ticks[k]), s)
+            s.id: _clip_pulse(int(pulses[k]), s)
             for k, s in enumerate(self._joint_servos)
             if s.joint in joints and s.id not in self._hardware_errors
         }
@@ -800,29 +825,44 @@ class DynamixelBus:
             "it is" if len(joints) == 1 else "they are",
         )
         if hold:
-            self.link.sync_write(_GOAL_POSITION, 4, {i: _u32(t) for i, t in hold.items()})
+            self.link.sync_write(_GOAL_POSITION.address, _GOAL_POSITION.size, _u32s(hold))
 
-    def _primary_angles(self, ticks: np.ndarray) -> np.ndarray:
-        """Joint angles ``(n_joints,) float64`` rad from the primaries' ticks in ``ticks`` (``_joint_servos`` order)."""
-        return units.ticks_to_rad(ticks[self._primary_index], offset=self._servo_offset[self._primary_index])
+    def _primary_angles(self, pulses: np.ndarray) -> np.ndarray:
+        """Joint angles ``(n_joints,) float64`` rad from the primaries in ``pulses`` (``_joint_servos`` order)."""
+        return units.pulses_to_rad(pulses[self._primary_index], offset=self._servo_offset[self._primary_index])
 
 
-def hold_tick(present: int, lo: int, hi: int) -> int:
+def hold_pulse(present: int, lo: int, hi: int) -> int:
     """The Goal Position that holds a position-mode servo where it is when its torque turns on.
 
-    ``present``: Present Position read with torque off, signed ticks; it counts whole turns then, and torque on
+    ``present``: Present Position read with torque off, signed pulses; it counts whole turns then, and torque on
     in position mode resets it into 0..4095, so it is taken modulo 4096 first (4196 -> 100, -100 -> 3996; the
     Homing Offset is 0 on this bus).  Then clipped to the servo's Min/Max Position Limit ``lo..hi``.
+
+    >>> hold_pulse(4196, 0, 4095), hold_pulse(-100, 0, 4095), hold_pulse(4196, 1024, 3072)
+    (100, 3996, 1024)
     """
-    return min(max(int(present) % units.TICKS_PER_REV, lo), hi)
+    return min(max(int(present) % units.PULSES_PER_REV, lo), hi)
 
 
-def _clip_tick(tick: int, s: ServoPlan) -> int:
-    return min(max(int(tick), s.min_tick), s.max_tick)
+hold_tick = hold_pulse  #: the first release's name
 
 
-def _u32(value: int | np.integer) -> bytes:
-    return int(value).to_bytes(4, "little", signed=True)
+def _clip_pulse(pulse: int, s: ServoPlan) -> int:
+    return min(max(int(pulse), s.min_pulse), s.max_pulse)
 
 
-__all__: Sequence[str] = ("DynamixelBus", "Profile", "ServoPlan", "ServoState", "hold_tick", "plan_servos")
+def _u32s(values: Mapping[int, int]) -> dict[int, bytes]:
+    """Servo ID -> value as the 4 little-endian bytes of a 4-byte register (signed: Goal Position may be < 0)."""
+    return {dxl_id: int(v).to_bytes(4, "little", signed=True) for dxl_id, v in values.items()}
+
+
+__all__: Sequence[str] = (
+    "DynamixelBus",
+    "Profile",
+    "ServoPlan",
+    "ServoState",
+    "hold_pulse",
+    "hold_tick",
+    "plan_servos",
+)

@@ -8,6 +8,14 @@ code and any of these work::
 
 ``sim://`` URLs are served by the simulator package ``sim``; it is imported on first use, which registers the
 URL handler with pyserial.  Open failures raise :class:`~retarget.errors.BusError`.
+
+dynamixel-sdk ships no type hints: :class:`PortHandler` here is the SDK's class at run time, and for the type
+checker a declaration of the part of it this package uses (the typed boundary to the SDK).
+
+>>> port = open_port("sim://?ids=1&clock=virtual", 1_000_000)
+>>> port.getBaudRate(), port.is_open
+(1000000, True)
+>>> port.closePort()
 """
 
 from __future__ import annotations
@@ -15,11 +23,35 @@ from __future__ import annotations
 import importlib
 import logging
 import socket
+from typing import TYPE_CHECKING
 
 import serial
-from dynamixel_sdk import PortHandler
 
 from retarget.errors import BusError
+
+if TYPE_CHECKING:
+
+    class PortHandler:
+        """``dynamixel_sdk.PortHandler`` as this package uses it (attributes and methods of SDK 3.7/3.8)."""
+
+        port_name: str
+        baudrate: int
+        is_open: bool
+        is_using: bool  #: a transaction holds the port (set by the packet handler, cleared on its end)
+        ser: serial.SerialBase | None
+        tx_time_per_byte: float  #: ms per byte on the wire
+
+        # the SDK's camelCase method names
+        def __init__(self, port_name: str) -> None: ...
+        def openPort(self) -> bool: ...
+        def closePort(self) -> None: ...
+        def clearPort(self) -> None: ...
+        def setBaudRate(self, baudrate: int) -> bool: ...
+        def getBaudRate(self) -> int: ...
+        def setupPort(self, cflag_baud: int) -> bool: ...
+
+else:
+    from dynamixel_sdk import PortHandler
 
 log = logging.getLogger(__name__)
 
@@ -46,6 +78,10 @@ SUPPORTED_BAUDS: tuple[int, ...] = (
 
 
 def _register_url_handlers(port_name: str) -> None:
+    """Import ``sim`` for a ``sim://`` URL: importing it registers the scheme with pyserial.
+
+    By name, not an import statement: the driver does not depend on the simulator, only a ``sim://`` URL does.
+    """
     if port_name.startswith("sim://"):
         try:
             importlib.import_module("sim")
@@ -96,7 +132,10 @@ class UrlPortHandler(PortHandler):
 
 
 def open_port(port: str, baud: int) -> UrlPortHandler:
-    """Open ``port`` (a device path or pyserial URL) at ``baud``; raises ``BusError`` naming the port on failure."""
+    """Open ``port`` (a device path or pyserial URL) at ``baud`` bps (one of :data:`SUPPORTED_BAUDS`).
+
+    Returns the open SDK port handler; raises ``BusError`` naming the port on failure.
+    """
     if baud not in SUPPORTED_BAUDS:
         known = ", ".join(map(str, SUPPORTED_BAUDS))
         raise BusError(f"baud rate {baud} is not supported by dynamixel-sdk; use one of {known}")

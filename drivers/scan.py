@@ -3,6 +3,8 @@
 Per baud rate: one broadcast PING (every servo answers in turn; the SDK waits a fixed ~0.8 s at 1 Mbps).
 When the broadcast answers are garbled (two servos with the same ID collide) or ``broadcast=False``, each
 ID of the range is pinged on its own instead (about 35 ms per absent ID).
+
+Servo ID lists such as ``"1-6"`` or ``"1,3,5"`` are parsed by :func:`drivers.control_table.parse_ids`.
 """
 
 from __future__ import annotations
@@ -18,7 +20,6 @@ from drivers.comm import Link, comm_result_name
 from drivers.control_table import BAUD_RATES, MAX_ID, MODEL_BY_NUMBER
 from drivers.latency import check_latency_timer
 from drivers.port import SUPPORTED_BAUDS, open_port
-from retarget.errors import ConfigError
 
 log = logging.getLogger(__name__)
 
@@ -30,6 +31,8 @@ ALL_BAUDS: tuple[int, ...] = tuple(
 
 @dataclass(frozen=True)
 class FoundServo:
+    """One servo that answered: its ID, model, firmware and the baud rate (bps) it answered at."""
+
     id: int
     model_number: int
     model: str  #: the model name, or "unknown" when it is not in drivers.control_table
@@ -38,25 +41,6 @@ class FoundServo:
 
     def as_dict(self) -> dict[str, object]:
         return asdict(self)
-
-
-def parse_ids(text: str) -> tuple[int, ...]:
-    """``"0-252"``, ``"1,2,5-9"`` -> sorted unique IDs; ConfigError naming the bad part."""
-    ids: set[int] = set()
-    for part in text.split(","):
-        part = part.strip()
-        try:
-            if "-" in part:
-                lo_text, hi_text = part.split("-", 1)
-                lo, hi = int(lo_text), int(hi_text)
-            else:
-                lo = hi = int(part)
-        except ValueError:
-            raise ConfigError("expected IDs like 1-9 or 1,3,5", key="--ids", value=text) from None
-        if not 0 <= lo <= hi <= MAX_ID:
-            raise ConfigError(f"expected IDs within 0..{MAX_ID}, low before high", key="--ids", value=part)
-        ids.update(range(lo, hi + 1))
-    return tuple(sorted(ids))
 
 
 def _found(dxl_id: int, number: int, firmware: int, baud: int) -> FoundServo:
@@ -91,7 +75,22 @@ def scan(
     broadcast: bool = True,
     progress: Callable[[str], None] | None = None,
 ) -> list[FoundServo]:
-    """Every servo found on ``port`` at each of ``bauds``, by baud then ID.  BusError when the port cannot open."""
+    """Every servo that answers on ``port`` at each of ``bauds``, by baud then ID.
+
+    Arguments:
+        port: a device path or pyserial URL (``/dev/ttyUSB0``, ``COM3``, ``socket://h:p``, ``sim://...``).
+        bauds: the baud rates to try, bps, in order (:data:`ALL_BAUDS`: every one a servo can be set to).
+        ids: the IDs to look for (0..252; :func:`drivers.control_table.parse_ids` reads ``"1-6"``).
+        broadcast: one broadcast PING per baud rate (about 0.8 s however many answer); False pings each ID
+            on its own (fast for a few IDs, about 35 ms per absent one).
+        progress: called with a line of text before each baud rate.
+
+    Returns a :class:`FoundServo` per answer.  BusError when the port cannot open at a baud rate.
+
+    >>> found = scan("sim://?ids=1-2&model=XM430-W350&clock=virtual", ids=[1, 2, 3], broadcast=False)
+    >>> [(s.id, s.model, s.firmware, s.baud) for s in found]
+    [(1, 'XM430-W350', 46, 1000000), (2, 'XM430-W350', 46, 1000000)]
+    """
     found: list[FoundServo] = []
     for k, baud in enumerate(bauds):
         if progress is not None:

@@ -1,12 +1,12 @@
-"""What each servo of an arm is configured to: its role, tick limits and the register values the bus writes.
+"""What each servo of an arm is configured to: its role, position limits and the register values the bus writes.
 
 :func:`plan_servos` turns an arm description into one :class:`ServoPlan` per servo (joints in order, primary
-then shadows, then the gripper), with the Min/Max Position Limit in ticks.  :class:`ServoSettings` holds
+then shadows, then the gripper), with the Min/Max Position Limit in pulses.  :class:`ServoSettings` holds
 the bus options that become register values, and :meth:`ServoSettings.registers` lists them per servo,
 EEPROM first (written with torque off) then RAM.
 
-Ticks are in the servo's register space, where Drive Mode bit 0 already reverses the shaft: every servo of
-a joint holds ``2048 + offset + q / RAD_PER_TICK``, so the limits use the offset and never the direction.
+Pulses are in the servo's register space, where Drive Mode bit 0 already reverses the shaft: every servo of
+a joint holds ``2048 + offset + q / RAD_PER_PULSE``, so the limits use the offset and never the direction.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from drivers.control_table import model as lookup_model
 from retarget.errors import ConfigError
 
 if TYPE_CHECKING:
-    from retarget.arm import Arm
+    from retarget.arm.model import Arm
 
 MAX_PROFILE_MS = 32737  #: the largest Profile Velocity of a time-based profile
 
@@ -44,26 +44,43 @@ class ServoPlan:
     model: Model
     role: str  #: "primary", "shadow" or "gripper"
     joint: int  #: index into the arm's joints; -1 for the gripper
-    offset: int  #: ticks: the joint's 0 rad is at 2048 + offset
+    offset: int  #: pulses: the joint's 0 rad is at 2048 + offset
     direction: int  #: +1 or -1, written to Drive Mode bit 0
-    min_tick: int  #: Min Position Limit
-    max_tick: int  #: Max Position Limit
+    min_pulse: int  #: Min Position Limit
+    max_pulse: int  #: Max Position Limit
+
+    @property
+    def min_tick(self) -> int:
+        """The first release's name of :attr:`min_pulse`."""
+        return self.min_pulse
+
+    @property
+    def max_tick(self) -> int:
+        """The first release's name of :attr:`max_pulse`."""
+        return self.max_pulse
 
 
-def tick_limits(lower: float, upper: float, offset: int = 0, *, where: str = "limits") -> tuple[int, int]:
-    """Min/Max Position Limit (ticks) inside ``[lower, upper]`` rad and the single-turn range 0..4095."""
-    lo = math.ceil(units.CENTER_TICK + offset + lower / units.RAD_PER_TICK - 1e-6)
-    hi = math.floor(units.CENTER_TICK + offset + upper / units.RAD_PER_TICK + 1e-6)
-    lo, hi = max(lo, units.MIN_TICK), min(hi, units.MAX_TICK)
+def pulse_limits(lower: float, upper: float, offset: int = 0, *, where: str = "limits") -> tuple[int, int]:
+    """Min/Max Position Limit (pulses) inside ``[lower, upper]`` rad and the single-turn range 0..4095.
+
+    >>> pulse_limits(-math.pi / 2, math.pi / 2, offset=10)
+    (1034, 3082)
+    """
+    lo = math.ceil(units.CENTER_PULSE + offset + lower / units.RAD_PER_PULSE - 1e-6)
+    hi = math.floor(units.CENTER_PULSE + offset + upper / units.RAD_PER_PULSE + 1e-6)
+    lo, hi = max(lo, units.MIN_PULSE), min(hi, units.MAX_PULSE)
     if lo >= hi:
         raise ConfigError(
-            "joint limits do not fit the servo's single-turn range 0..4095 ticks", key=where, value=(lower, upper)
+            "joint limits do not fit the servo's single-turn range 0..4095 pulses", key=where, value=(lower, upper)
         )
     return lo, hi
 
 
+tick_limits = pulse_limits  #: the first release's name
+
+
 def plan_servos(arm: Arm) -> tuple[ServoPlan, ...]:
-    """Every servo of ``arm`` (joints in order, primary then shadows, then the gripper) with its tick limits."""
+    """Every servo of ``arm`` (joints in order, primary then shadows, then the gripper) with its position limits."""
     plans: list[ServoPlan] = []
     for j, joint in enumerate(arm.joints):
         for k, servo in enumerate(joint.servos):
@@ -72,7 +89,7 @@ def plan_servos(arm: Arm) -> tuple[ServoPlan, ...]:
                 model = lookup_model(servo.model)
             except KeyError as exc:
                 raise ConfigError(str(exc.args[0]), path=arm.source, key=f"{where}.model", value=servo.model) from exc
-            lo, hi = tick_limits(joint.lower, joint.upper, servo.offset, where=f"joints[{j}].limits")
+            lo, hi = pulse_limits(joint.lower, joint.upper, servo.offset, where=f"joints[{j}].limits")
             role = "primary" if k == 0 else "shadow"
             plans.append(ServoPlan(servo.id, model, role, j, servo.offset, servo.direction, lo, hi))
     if arm.gripper is not None:
@@ -82,7 +99,7 @@ def plan_servos(arm: Arm) -> tuple[ServoPlan, ...]:
         except KeyError as exc:
             key = "gripper.servo.model"
             raise ConfigError(str(exc.args[0]), path=arm.source, key=key, value=g.servo.model) from exc
-        lo, hi = tick_limits(g.lower, g.upper, g.servo.offset, where="gripper.limits")
+        lo, hi = pulse_limits(g.lower, g.upper, g.servo.offset, where="gripper.limits")
         plans.append(ServoPlan(g.servo.id, model, "gripper", -1, g.servo.offset, g.servo.direction, lo, hi))
     seen: set[int] = set()
     for p in plans:
@@ -110,23 +127,23 @@ class ServoSettings:
             max_velocity = float(np.max(arm.max_velocity))
         else:
             max_velocity = float(arm.joints[s.joint].max_velocity)
-        velocity_limit = int(min(units.rad_s_to_velocity_units(max_velocity), reg_max))
+        velocity_limit = min(int(units.rad_s_to_velocity_units(max_velocity)), reg_max)
         drive = DriveMode.REVERSE if s.direction < 0 else DriveMode(0)
         if self.profile is Profile.TIME:
             drive |= DriveMode.TIME_BASED_PROFILE
             duration = self.profile_time if self.profile_time is not None else (self.dt or 0.1)
-            pv = int(min(units.seconds_to_ms(duration), MAX_PROFILE_MS))
+            pv = min(int(units.seconds_to_ms(duration)), MAX_PROFILE_MS)
             pa = pv // 4  # the ramp may not exceed half the move
         else:
             speed = max_velocity if self.profile_velocity is None else min(self.profile_velocity, max_velocity)
-            pv = int(min(units.rad_s_to_velocity_units(speed), velocity_limit))
+            pv = min(int(units.rad_s_to_velocity_units(speed)), velocity_limit)
             pa = int(units.rad_s2_to_accel_units(self.profile_acceleration or 0.0))
         eeprom = {  # Operating Mode first: changing it resets the profile registers
             "Operating Mode": int(OperatingMode.POSITION),
             "Drive Mode": int(drive),
             "Homing Offset": 0,  # the arm description's offset is the one calibration
-            "Max Position Limit": s.max_tick,
-            "Min Position Limit": s.min_tick,
+            "Max Position Limit": s.max_pulse,
+            "Min Position Limit": s.min_pulse,
             "Velocity Limit": velocity_limit,
             "Return Delay Time": self.return_delay_us // RETURN_DELAY_UNIT_US,
         }

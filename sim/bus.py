@@ -1,7 +1,7 @@
 """A simulated Dynamixel bus: servos on one half-duplex wire, answering Protocol 2.0 instructions byte for byte.
 
 :meth:`SimBus.feed` takes the bytes a host wrote and returns the status packets the servos send back, each
-with the clock time its last byte is on the wire (:class:`Reply`).  The transports (``sim.transport`` in
+with the clock time its last byte is on the wire (:class:`ScheduledReply`).  The transports (``sim.transport`` in
 process, ``sim.server`` on a pty or TCP) deliver them at that time; :meth:`SimBus.handle` returns them at once
 for tests of the protocol alone.
 
@@ -37,9 +37,10 @@ import threading
 from collections import deque
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
-from drivers.control_table import BROADCAST_ID, MAX_ID, FactoryReset, Instruction, StatusError
+from drivers.control_table import BROADCAST_ID, MAX_ID, RAD_PER_PULSE, FactoryReset, Instruction, StatusError
+from retarget.arm.load import load_arm
 from retarget.control.clock import Clock, MonotonicClock
 from retarget.errors import ConfigError
 from sim.faults import Faults, ReplyFaults, wire_time
@@ -47,7 +48,7 @@ from sim.protocol import Packet, PacketParser, build_fast_read_status, build_sta
 from sim.servo import SimServo
 
 if TYPE_CHECKING:
-    from retarget.arm import Arm
+    from retarget.arm.model import Arm
 
 log = logging.getLogger(__name__)
 
@@ -66,12 +67,29 @@ _ALWAYS_BROADCAST_SILENT = frozenset(
 
 
 @dataclass(frozen=True)
-class Reply:
-    """A status packet on the wire: its bytes, the servo that sent it, the clock time its last byte arrives."""
+class ScheduledReply:
+    """A status packet on the wire: its bytes, the servo that sent it, the clock time its last byte arrives.
+
+    The transports hand ``data`` to the host once the bus clock reaches ``due`` (seconds on the bus clock).
+    ``drivers.comm.StatusPacket`` is the host's side: the same packet decoded.
+    """
 
     due: float
     data: bytes
     id: int
+
+
+Reply = ScheduledReply  #: the first release's name (``sim.Reply``)
+
+
+class _Sender(Protocol):
+    """Who puts a status packet on the wire: a servo, or the first servo of a fast read (:class:`_FastSender`)."""
+
+    @property
+    def id(self) -> int: ...
+
+    @property
+    def return_delay(self) -> float: ...
 
 
 @dataclass(frozen=True)
@@ -86,7 +104,26 @@ class LogEntry:
 
 
 class SimBus:
-    """Servos sharing one wire.  Build with :meth:`from_arm` or :meth:`from_ids`; see the module docstring."""
+    """Servos sharing one wire.  Build with :meth:`from_arm` or :meth:`from_ids`; see the module docstring.
+
+    Arguments:
+        servos: the servos on the wire (distinct IDs, one clock: ConfigError/ValueError otherwise).
+        clock: the bus clock (seconds); default the servos' clock.  A ``VirtualClock`` makes time jump.
+        baud: bps of the wire, for the wire-time model (each servo listens at its own Baud Rate item).
+        faults: lost, corrupt and late replies, unplugged servos, hardware errors, the wire model.
+        crc_error_reply: a unicast packet with a bad CRC answers CRC Error (3); False: it is ignored.
+
+    Reach it as a serial port with :func:`sim.attach` (in process) or :mod:`sim.server` (pty, TCP); or feed
+    it bytes directly.  A PING of servo 1, answered with its model number (1060 = XL430-W250) and firmware::
+
+        >>> from retarget.control.clock import VirtualClock
+        >>> from sim.protocol import build_instruction
+        >>> bus = SimBus.from_ids([1, 2], "XL430-W250", clock=VirtualClock())
+        >>> bus.handle(build_instruction(1, Instruction.PING)).hex(" ")
+        'ff ff fd 00 01 07 00 55 00 24 04 2e fe df'
+        >>> bus.servo(2).get("Present Position")
+        2048
+    """
 
     def __init__(
         self,
@@ -135,11 +172,16 @@ class SimBus:
         position: float = 2048.0,
         boot_time: float = 0.0,
         faults: Faults | None = None,
-        **bus_options: object,
+        crc_error_reply: bool = True,
     ) -> SimBus:
-        """Servos of one ``model`` with these IDs, set to ``baud``; every other item at its factory default.
+        """Servos of one ``model`` with these IDs, set to ``baud`` (bps); every other item at its factory default.
 
-        ``boot_time`` (s) is how long a servo stays silent after REBOOT.
+        ``return_delay_time``: the Return Delay Time item (2 us units; default 250, the factory value);
+        ``position``: Present Position of every servo (pulses); ``boot_time`` (s): how long a servo stays
+        silent after REBOOT.  The other arguments as :class:`SimBus`.
+
+        >>> SimBus.from_ids(range(1, 4), "XM430-W350", baud=57600)
+        SimBus(ids=[1, 2, 3], baud=57600)
         """
         clock = clock if clock is not None else MonotonicClock()
         servos = [
@@ -154,7 +196,7 @@ class SimBus:
             )
             for i in ids
         ]
-        return cls(servos, clock=clock, baud=baud, faults=faults, **bus_options)  # type: ignore[arg-type]
+        return cls(servos, clock=clock, baud=baud, faults=faults, crc_error_reply=crc_error_reply)
 
     @classmethod
     def from_arm(
@@ -167,20 +209,19 @@ class SimBus:
         return_delay_time: int | None = None,
         boot_time: float = 0.0,
         faults: Faults | None = None,
-        **bus_options: object,
+        crc_error_reply: bool = True,
     ) -> SimBus:
-        """Every servo of ``arm`` (an Arm or a bundled arm name): joints, shadows and gripper, with their models.
+        """Every servo of ``arm`` (an Arm, or the name or path it loads from): joints, shadows and gripper.
 
         The servos sit at ``pose`` (joint angles, rad; default the arm's rest pose), read through each servo's
-        direction and offset as the driver will configure them; the gripper at its centre.  ``baud``
-        defaults to the arm's.
+        direction and offset as the driver will configure them; the gripper at its centre.  ``baud`` (bps)
+        defaults to the arm's.  The other arguments as :meth:`from_ids`.
+
+        >>> SimBus.from_arm("wx250s")
+        SimBus(ids=[1, 2, 3, 4, 5, 6, 7, 8, 9], baud=1000000)
         """
-        from drivers.control_table import rad_to_pulses
-
         if isinstance(arm, str):
-            import retarget
-
-            arm = retarget.load_arm(arm)
+            arm = load_arm(arm)
         clock = clock if clock is not None else MonotonicClock()
         baud = arm.baud if baud is None else baud
         q = list(arm.rest_pose if pose is None else pose)
@@ -189,7 +230,7 @@ class SimBus:
         servos = []
         for joint, angle in zip(arm.joints, q, strict=True):
             for s in joint.servos:
-                actual = 2048 + s.direction * (s.offset + rad_to_pulses(angle))
+                actual = 2048 + s.direction * (s.offset + angle / RAD_PER_PULSE)
                 servos.append(
                     SimServo(
                         s.model,
@@ -208,7 +249,7 @@ class SimBus:
                     g.model, g.id, clock=clock, baud=baud, return_delay_time=return_delay_time, boot_time=boot_time
                 )
             )
-        return cls(servos, clock=clock, baud=baud, faults=faults, **bus_options)  # type: ignore[arg-type]
+        return cls(servos, clock=clock, baud=baud, faults=faults, crc_error_reply=crc_error_reply)
 
     def _apply_scheduled_faults(self) -> None:
         for fault in self.faults.hardware:
@@ -247,7 +288,7 @@ class SimBus:
         """Every byte the servos answer to ``request``, in order, ignoring when it would arrive (tests)."""
         return b"".join(r.data for r in self.feed(request))
 
-    def feed(self, data: bytes, now: float | None = None) -> list[Reply]:
+    def feed(self, data: bytes, now: float | None = None) -> list[ScheduledReply]:
         """Receive ``data`` written at ``now`` (default ``clock.now()``); the replies with their arrival times."""
         with self._lock:
             now = self.clock.now() if now is None else now
@@ -255,7 +296,7 @@ class SimBus:
             # half duplex: these bytes go out once the wire is free of earlier instructions and replies
             cursor = max(now, self._wire_free_at) if self.faults.wire else now
             cursor += wire_time(len(data), self.baud) if self.faults.wire else 0.0
-            replies: list[Reply] = []
+            replies: list[ScheduledReply] = []
             for packet in self._parser.feed(data):
                 entry = LogEntry(cursor, packet.id, packet.instruction, packet.params, packet.crc_ok)
                 self.log.append(entry)
@@ -274,7 +315,7 @@ class SimBus:
                 self._replies_end = max(self._replies_end, max(r.due for r in replies))
             return replies
 
-    def _schedule(self, out: list[tuple[SimServo, bytes]], cursor: float, replies: list[Reply]) -> float:
+    def _schedule(self, out: list[tuple[_Sender, bytes]], cursor: float, replies: list[ScheduledReply]) -> float:
         """Put each servo's packet on the wire after its return delay; apply reply faults."""
         for servo, packet in out:
             f = servo.reply_faults if isinstance(servo, _FastSender) else self.faults.for_servo(servo.id)
@@ -286,13 +327,13 @@ class SimBus:
                 continue
             if self.faults.roll(f.corrupt):
                 packet = packet[:-1] + bytes((packet[-1] ^ 0x01,))
-            replies.append(Reply(end + f.delay, packet, servo.id))
+            replies.append(ScheduledReply(end + f.delay, packet, servo.id))
         return cursor
 
     def _listeners(self, t: float) -> list[SimServo]:
         return [s for s in self._servos if s.listening(t) and (self.line_baud is None or s.baud == self.line_baud)]
 
-    def _dispatch(self, pkt: Packet, t: float) -> list[tuple[SimServo, bytes]]:
+    def _dispatch(self, pkt: Packet, t: float) -> list[tuple[_Sender, bytes]]:
         listeners = self._listeners(t)
         for s in listeners:
             s.update(t)
@@ -312,10 +353,9 @@ class SimBus:
             return []
         inst = pkt.instruction
         srl = target.status_return_level
+        reply: list[tuple[_Sender, bytes]] = []
         if inst == Instruction.PING or (inst in _READ_INSTRUCTIONS and srl >= 1) or srl >= 2:
-            reply = [(target, build_status(pkt.id, target.error_byte(error), data))]  # from the ID addressed
-        else:
-            reply = []
+            reply.append((target, build_status(pkt.id, target.error_byte(error), data)))  # from the ID addressed
         if reboot:
             target.reboot()
         return reply
@@ -347,7 +387,7 @@ class SimBus:
             return s.clear(p), b"", False
         return StatusError.INSTRUCTION, b"", False
 
-    def _broadcast(self, pkt: Packet, servos: list[SimServo], t: float) -> list[tuple[SimServo, bytes]]:
+    def _broadcast(self, pkt: Packet, servos: list[SimServo], t: float) -> list[tuple[_Sender, bytes]]:
         inst, p = pkt.instruction, pkt.params
         if inst == Instruction.PING:
             return [(s, build_status(s.id, s.error_byte(StatusError.NONE), s.ping())) for s in servos]
@@ -377,16 +417,16 @@ class SimBus:
             return []  # unknown broadcast instruction: nobody answers
         if inst in (Instruction.FAST_SYNC_READ, Instruction.FAST_BULK_READ):
             return self._fast_read(requests, by_id)
-        out = []
+        out: list[tuple[_Sender, bytes]] = []
         for dxl_id, address, length in requests:
-            s = by_id.get(dxl_id)
-            if s is None or s.status_return_level < 1:
+            servo = by_id.get(dxl_id)
+            if servo is None or servo.status_return_level < 1:
                 continue
-            error, data = s.read(address, length)
-            out.append((s, build_status(s.id, s.error_byte(error), data)))
+            error, data = servo.read(address, length)
+            out.append((servo, build_status(servo.id, servo.error_byte(error), data)))
         return out
 
-    def _sync_write(self, p: bytes, by_id: dict[int, SimServo]) -> list[tuple[SimServo, bytes]]:
+    def _sync_write(self, p: bytes, by_id: dict[int, SimServo]) -> list[tuple[_Sender, bytes]]:
         if len(p) < 4:
             return []
         address, length = _u16(p, 0), _u16(p, 2)
@@ -399,7 +439,7 @@ class SimBus:
                 s.write(address, p[k + 1 : k + step])
         return []
 
-    def _bulk_write(self, p: bytes, by_id: dict[int, SimServo]) -> list[tuple[SimServo, bytes]]:
+    def _bulk_write(self, p: bytes, by_id: dict[int, SimServo]) -> list[tuple[_Sender, bytes]]:
         k = 0
         while k + 5 <= len(p):
             dxl_id, address, length = p[k], _u16(p, k + 1), _u16(p, k + 3)
@@ -414,7 +454,7 @@ class SimBus:
 
     def _fast_read(
         self, requests: list[tuple[int, int, int]], by_id: dict[int, SimServo]
-    ) -> list[tuple[SimServo, bytes]]:
+    ) -> list[tuple[_Sender, bytes]]:
         """One shared packet; each servo's slot is ERR ID DATA CRC.  A silent servo cuts the packet there."""
         slots = []
         present: list[SimServo] = []
@@ -446,7 +486,7 @@ class SimBus:
             return []
         # the packet leaves as one stream; attribute it to the first servo (its return delay starts it)
         delay = max(x.delay for x in f)
-        return [(_FastSender(present[0], ReplyFaults(delay=delay)), packet[:end])]  # type: ignore[list-item]
+        return [(_FastSender(present[0], ReplyFaults(delay=delay)), packet[:end])]
 
 
 class _FastSender:

@@ -24,7 +24,7 @@ import random
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
-from drivers.control_table import HardwareError
+from drivers.control_table import MAX_ID, HardwareError
 from retarget.errors import ConfigError
 
 BITS_PER_BYTE = 10  #: 8N1: start bit, 8 data bits, stop bit
@@ -103,9 +103,21 @@ class Faults:
         hwerror: Iterable[str] = (),
         wire: bool | str = False,
         seed: int | str = 0,
-        source: str = "sim",
+        source: str | None = None,
     ) -> Faults:
-        """Parse the option strings documented in the module docstring; ConfigError naming ``source`` and the option."""
+        """Parse the option strings documented in the module docstring.
+
+        ConfigError on a bad value: its ``key`` is the option ("drop", "hwerror", ...), its ``path`` is
+        ``source`` (the ``sim://`` URL the options came from, or None).
+
+        >>> faults = Faults.from_options(drop=["0.1", "3:0.5"], unplug=["4@1.5"], wire=True)
+        >>> faults.for_servo(1).drop, faults.for_servo(3).drop, faults.unplug, faults.wire
+        (0.1, 0.5, {4: 1.5}, True)
+        >>> Faults.from_options(hwerror=["3:melting@2"])  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        retarget.errors.ConfigError: hwerror: Expected a kind among input_voltage, ... (got '3:melting@2')
+        """
         bus_values: dict[str, float] = {}
         per_servo: dict[int, dict[str, float]] = {}
         for key, values, scale in (("drop", drop, 1.0), ("corrupt", corrupt, 1.0), ("delay_ms", delay_ms, 1e-3)):
@@ -137,7 +149,7 @@ class Faults:
             try:
                 bits = HardwareError[kind.strip().upper()]
             except KeyError:
-                kinds = ", ".join(e.name.lower() for e in HardwareError)
+                kinds = ", ".join(str(e.name).lower() for e in HardwareError)
                 raise ConfigError(f"Expected a kind among {kinds}", path=source, key="hwerror", value=item) from None
             hardware.append(
                 HardwareFault(_servo_id(sid, source, "hwerror", item), int(bits), _number(at, source, "hwerror", item))
@@ -150,7 +162,7 @@ class Faults:
         return cls(bus, servos, unplugs, hardware, wire_on, seed_value)
 
     @classmethod
-    def from_query(cls, query: Mapping[str, Sequence[str]], *, source: str = "sim") -> Faults:
+    def from_query(cls, query: Mapping[str, Sequence[str]], *, source: str | None = None) -> Faults:
         """From a parsed URL query (``urllib.parse.parse_qs``); unknown keys are left to the caller."""
 
         def values(key: str) -> list[str]:
@@ -177,7 +189,7 @@ def _split(values: Iterable[str]) -> list[str]:
     return [part.strip() for v in values for part in str(v).split(",") if part.strip()]
 
 
-def _number(text: str, source: str, key: str, item: str) -> float:
+def _number(text: str, source: str | None, key: str, item: str) -> float:
     try:
         value = float(text)
     except ValueError:
@@ -187,17 +199,17 @@ def _number(text: str, source: str, key: str, item: str) -> float:
     return value
 
 
-def _servo_id(text: str, source: str, key: str, item: str) -> int:
+def _servo_id(text: str, source: str | None, key: str, item: str) -> int:
     try:
         sid = int(text)
     except ValueError:
-        raise ConfigError("Expected a servo ID 0..252", path=source, key=key, value=item) from None
-    if not 0 <= sid <= 252:
-        raise ConfigError("Expected a servo ID 0..252", path=source, key=key, value=item)
+        raise ConfigError(f"Expected a servo ID 0..{MAX_ID}", path=source, key=key, value=item) from None
+    if not 0 <= sid <= MAX_ID:
+        raise ConfigError(f"Expected a servo ID 0..{MAX_ID}", path=source, key=key, value=item)
     return sid
 
 
-def _flag(value: bool | str, source: str) -> bool:
+def _flag(value: bool | str, source: str | None) -> bool:
     if isinstance(value, bool):
         return value
     text = str(value).strip().lower()

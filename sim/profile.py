@@ -1,5 +1,8 @@
 """Motion profiles of a simulated servo: piecewise constant-acceleration segments, evaluated in closed form.
 
+The servo's profile (velocity- or time-based, ``drivers.servo_plan.Profile``) shapes each move; what it
+plans for one goal is a :class:`Trajectory` (the e-Manual's Position/Velocity Trajectory items report it).
+
 Units are the servo's own: position in pulses, velocity in pulses/s, acceleration in pulses/s^2, time in
 seconds on the servo's clock.  A profile is planned once, when a goal is written, and then evaluated at any
 later time, so a read after a minute of virtual time costs the same as a read after a millisecond.
@@ -29,8 +32,15 @@ class Segment:
 
 
 @dataclass(frozen=True)
-class Profile:
-    """A planned motion: segments back to back, then rest at ``end_position`` (unless the last never ends)."""
+class Trajectory:
+    """A planned motion: segments back to back, then rest at ``end_position`` (unless the last never ends).
+
+    >>> move = velocity_profile(0.0, 0.0, 0.0, goal=100.0, vmax=1000.0, accel=10_000.0)
+    >>> move.shape, round(move.t_end, 3)  # a triangle (Moving Status bits 4-5 = 2), 0.2 s long
+    (2, 0.2)
+    >>> move.state(0.05), move.state(1.0)  # (pulses, pulses/s, pulses/s^2): speeding up, then at rest
+    ((12.5, 500.0, 10000.0), (100.0, 0.0, 0.0))
+    """
 
     segments: tuple[Segment, ...]
     end_position: float
@@ -57,8 +67,8 @@ class Profile:
         return t >= self.t_end
 
 
-def rest(position: float) -> Profile:
-    return Profile((), float(position))
+def rest(position: float) -> Trajectory:
+    return Trajectory((), float(position))
 
 
 def _append(segs: list[Segment], t: float, p: float, v: float, a: float, d: float) -> tuple[float, float, float]:
@@ -68,7 +78,7 @@ def _append(segs: list[Segment], t: float, p: float, v: float, a: float, d: floa
     return t + d, p + v * d + 0.5 * a * d * d, v + a * d
 
 
-def velocity_profile(t0: float, p0: float, v0: float, goal: float, vmax: float, accel: float) -> Profile:
+def velocity_profile(t0: float, p0: float, v0: float, goal: float, vmax: float, accel: float) -> Trajectory:
     """Time-optimal move from ``(p0, v0)`` at ``t0`` to rest at ``goal`` within ``|v| <= vmax``, ``|a| <= accel``."""
     if vmax <= 0:
         raise ValueError(f"Expected vmax > 0, got {vmax}")
@@ -80,7 +90,7 @@ def velocity_profile(t0: float, p0: float, v0: float, goal: float, vmax: float, 
         d = goal - p
         if d:
             t, p, v = _append(segs, t, p, math.copysign(vmax, d), 0.0, abs(d) / vmax)
-        return Profile(tuple(segs), float(goal), 1 if segs else 0)
+        return Trajectory(tuple(segs), float(goal), 1 if segs else 0)
     for _ in range(3):  # at most: stop an overshoot or overspeed, then plan from rest
         d = goal - p
         s = 1.0 if d > 0 or (d == 0 and v < 0) else -1.0
@@ -104,11 +114,11 @@ def velocity_profile(t0: float, p0: float, v0: float, goal: float, vmax: float, 
             t, p, v = _append(segs, t, p, v, s * accel, (peak - u) / accel)
             _append(segs, t, p, s * peak, -s * accel, peak / accel)
             shape = 2
-        return Profile(tuple(segs), float(goal), shape if segs else 0)
+        return Trajectory(tuple(segs), float(goal), shape if segs else 0)
     raise AssertionError("velocity_profile did not converge")  # pragma: no cover
 
 
-def time_profile(t0: float, p0: float, goal: float, t_total: float, t_accel: float, vmax: float) -> Profile:
+def time_profile(t0: float, p0: float, goal: float, t_total: float, t_accel: float, vmax: float) -> Trajectory:
     """Move from rest at ``p0`` to ``goal`` in ``t_total`` s with ``t_accel`` s ramps, slowed to respect ``vmax``."""
     d = goal - p0
     if d == 0:
@@ -125,19 +135,19 @@ def time_profile(t0: float, p0: float, goal: float, t_total: float, t_accel: flo
     t, p, v = t0, float(p0), 0.0
     if t_accel == 0:
         _append(segs, t, p, s * peak, 0.0, t_total)
-        return Profile(tuple(segs), float(goal), 1)
+        return Trajectory(tuple(segs), float(goal), 1)
     a = peak / t_accel
     t, p, v = _append(segs, t, p, v, s * a, t_accel)
     t, p, v = _append(segs, t, p, s * peak, 0.0, t_total - 2 * t_accel)
     _append(segs, t, p, s * peak, -s * a, t_accel)
-    return Profile(tuple(segs), float(goal), 2 if t_total == 2 * t_accel else 3)
+    return Trajectory(tuple(segs), float(goal), 2 if t_total == 2 * t_accel else 3)
 
 
-def ramp_profile(t0: float, p0: float, v0: float, v_goal: float, accel: float) -> Profile:
+def ramp_profile(t0: float, p0: float, v0: float, v_goal: float, accel: float) -> Trajectory:
     """Velocity mode: ramp from ``v0`` to ``v_goal`` at ``accel`` (inf: at once) and keep it forever."""
     segs: list[Segment] = []
     t, p, v = t0, float(p0), float(v0)
     if not math.isinf(accel) and v != v_goal:
         t, p, v = _append(segs, t, p, v, math.copysign(accel, v_goal - v), abs(v_goal - v) / accel)
     segs.append(Segment(t, p, float(v_goal), 0.0, math.inf))
-    return Profile(tuple(segs), math.nan, 3 if len(segs) > 1 else 1)
+    return Trajectory(tuple(segs), math.nan, 3 if len(segs) > 1 else 1)

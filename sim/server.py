@@ -28,7 +28,7 @@ from collections import deque
 from typing import Self
 
 from retarget.control.clock import VirtualClock
-from sim.bus import Reply, SimBus
+from sim.bus import ScheduledReply, SimBus
 
 log = logging.getLogger(__name__)
 
@@ -50,7 +50,7 @@ class SimServer:
         self.bus = bus
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self._pending: deque[Reply] = deque()
+        self._pending: deque[ScheduledReply] = deque()
         self._wake_r, self._wake_w = os.pipe()  #: close() writes here to end a select at once
 
     # subclasses: open resources in __init__/start, give the fd to poll, read, write, close
@@ -184,8 +184,9 @@ class TcpServer(SimServer):
     def _fd(self) -> int | None:
         if self._client is not None:
             return self._client.fileno()
-        readable, _, _ = select.select([self._listener, self._wake_r], [], [], _POLL)
-        if self._listener in readable:
+        listener = self._listener.fileno()
+        readable, _, _ = select.select([listener, self._wake_r], [], [], _POLL)
+        if listener in readable:
             with contextlib.suppress(BlockingIOError):
                 self._client, peer = self._listener.accept()
                 self._client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)

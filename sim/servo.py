@@ -54,12 +54,11 @@ from drivers.control_table import (
     OperatingMode,
     Register,
     StatusError,
+    common_register,
 )
-from drivers.control_table import (
-    model as lookup_model,
-)
+from drivers.control_table import model as lookup_model
 from retarget.control.clock import Clock, MonotonicClock
-from sim.profile import Profile, ramp_profile, rest, time_profile, velocity_profile
+from sim.profile import Trajectory, ramp_profile, rest, time_profile, velocity_profile
 
 log = logging.getLogger(__name__)
 _I16, _U16, _I32 = struct.Struct("<h"), struct.Struct("<H"), struct.Struct("<i")
@@ -71,6 +70,36 @@ _POSITION_MODES = (OperatingMode.POSITION, OperatingMode.EXTENDED_POSITION, Oper
 _HOLD_SHARE = 0.06  #: Present Current while holding still, as a share of the stall current ("gravity")
 _ACCEL_SHARE = 0.25  #: extra share at the reference acceleration (no-load speed reached in 0.1 s)
 _VELOCITY_SHARE = 0.10  #: extra share at the no-load speed
+
+# Addresses of the items the servo reads and writes in its own memory on every update: the same on every X model
+# (common_register checks that), as plain ints for the hot path.  "Present Current" is Present Load on XL430.
+_MODEL_NUMBER = common_register("Model Number").address
+_FIRMWARE_VERSION = common_register("Firmware Version").address
+_ID = common_register("ID").address
+_BAUD_RATE = common_register("Baud Rate").address
+_RETURN_DELAY_TIME = common_register("Return Delay Time").address
+_DRIVE_MODE = common_register("Drive Mode").address
+_OPERATING_MODE = common_register("Operating Mode").address
+_HOMING_OFFSET = common_register("Homing Offset").address
+_MOVING_THRESHOLD = common_register("Moving Threshold").address
+_SHUTDOWN = common_register("Shutdown").address
+_TORQUE_ENABLE = common_register("Torque Enable").address
+_STATUS_RETURN_LEVEL = common_register("Status Return Level").address
+_REGISTERED_INSTRUCTION = common_register("Registered Instruction").address
+_HARDWARE_ERROR_STATUS = common_register("Hardware Error Status").address
+_GOAL_POSITION = common_register("Goal Position").address
+_REALTIME_TICK = common_register("Realtime Tick").address
+_MOVING = common_register("Moving").address
+_MOVING_STATUS = common_register("Moving Status").address
+_PRESENT_PWM = common_register("Present PWM").address
+_PRESENT_CURRENT = common_register("Present Current").address
+_PRESENT_VELOCITY = common_register("Present Velocity").address
+_PRESENT_POSITION = common_register("Present Position").address
+_VELOCITY_TRAJECTORY = common_register("Velocity Trajectory").address
+_POSITION_TRAJECTORY = common_register("Position Trajectory").address
+_PRESENT_INPUT_VOLTAGE = common_register("Present Input Voltage").address
+_PRESENT_TEMPERATURE = common_register("Present Temperature").address
+_REVERSE_BIT = int(DriveMode.REVERSE)  #: Drive Mode bit 0, as an int (an IntFlag operation costs a microsecond)
 
 
 class SimServo:
@@ -113,7 +142,7 @@ class SimServo:
         now = self.clock.now()
         self._t_origin = now
         self._t = now
-        self._profile: Profile = rest(float(position))  # physical (actual) pulses
+        self._trajectory: Trajectory = rest(float(position))  # physical (actual) pulses
         self._state = (float(position), 0.0, 0.0)  # actual p, v, a at self._t
         self._registered: tuple[int, bytes] | None = None
         self._scheduled_errors: list[tuple[float, int]] = []
@@ -121,7 +150,7 @@ class SimServo:
         self._unplugged_at = math.inf
         #: (time, address, data) of the last accepted writes, oldest first
         self.writes: deque[tuple[float, int, bytes]] = deque(maxlen=10_000)
-        self._set("Goal Position", self._present_from_actual(self._state[0]))
+        self._set("Goal Position", int(self._present_from_actual(self._state[0])))
         self._indirect_used = False
         self.update()
 
@@ -132,37 +161,37 @@ class SimServo:
 
     @property
     def id(self) -> int:
-        return self._mem[7]
+        return self._mem[_ID]
 
     @property
     def baud(self) -> int:
         """The bps it listens at (Baud Rate item)."""
-        return BAUD_RATES[self._mem[8]]
+        return BAUD_RATES[self._mem[_BAUD_RATE]]
 
     @property
     def return_delay(self) -> float:
         """Seconds between the end of an instruction and the start of its status packet."""
-        return self._mem[9] * RETURN_DELAY_UNIT_S
+        return self._mem[_RETURN_DELAY_TIME] * RETURN_DELAY_UNIT_S
 
     @property
     def status_return_level(self) -> int:
-        return self._mem[68]
+        return self._mem[_STATUS_RETURN_LEVEL]
 
     @property
     def torque(self) -> bool:
         """Torque Enable, now."""
         self.update()
-        return bool(self._mem[64])
+        return bool(self._mem[_TORQUE_ENABLE])
 
     @property
     def hardware_error(self) -> int:
         """Hardware Error Status, now."""
         self.update()
-        return self._mem[70]
+        return self._mem[_HARDWARE_ERROR_STATUS]
 
     def error_byte(self, error: int) -> int:
         """The ERR byte of a status packet: ``error`` plus the Alert bit while a hardware error is set."""
-        return error | (ALERT_BIT if self._mem[70] else 0)
+        return error | (ALERT_BIT if self._mem[_HARDWARE_ERROR_STATUS] else 0)
 
     @property
     def ambient_temperature(self) -> float:
@@ -210,12 +239,12 @@ class SimServo:
 
     def _raise_hardware_error(self, bits: int) -> None:
         self._fresh = None
-        self._mem[70] |= bits
+        self._mem[_HARDWARE_ERROR_STATUS] |= bits
         if bits & HardwareError.OVERHEATING:
             self.ambient_temperature = max(self.ambient_temperature, self._get("Temperature Limit") + 3)
         if bits & HardwareError.INPUT_VOLTAGE:
             self.input_voltage = self._get("Max Voltage Limit") * VOLT_PER_UNIT + 1.0
-        if bits & self._mem[63] and self._mem[64]:
+        if bits & self._mem[_SHUTDOWN] and self._mem[_TORQUE_ENABLE]:
             self._torque_off()
         log.info("servo %d: hardware error 0x%02x", self.id, bits)
 
@@ -247,7 +276,7 @@ class SimServo:
         self._fresh = None
         self.update()
         actual = self._actual_from_present(present)
-        self._profile = rest(actual)
+        self._trajectory = rest(actual)
         self._state = (actual, 0.0, 0.0)
         self._fresh = None
         self.update()
@@ -262,7 +291,7 @@ class SimServo:
 
     @property
     def _reverse(self) -> bool:
-        return bool(self._mem[10] & DriveMode.REVERSE)
+        return bool(self._mem[_DRIVE_MODE] & DriveMode.REVERSE)
 
     def _present_from_actual(self, actual: float) -> float:
         return (PULSES_PER_REV - actual if self._reverse else actual) + self._get("Homing Offset")
@@ -274,7 +303,7 @@ class SimServo:
     # ------------------------------------------------------------------ motion
 
     def _mode(self) -> int:
-        return self._mem[11]
+        return self._mem[_OPERATING_MODE]
 
     def _vmax(self) -> float:
         """Pulses/s cap: Velocity Limit and the no-load speed."""
@@ -288,13 +317,13 @@ class SimServo:
         goal = self._actual_from_present(self._get("Goal Position"))
         vmax = self._vmax()
         pv, pa = self._get("Profile Velocity"), self._get("Profile Acceleration")
-        if self._mem[10] & DriveMode.TIME_BASED_PROFILE:
-            self._profile = time_profile(now, p, goal, pv / 1000.0, pa / 1000.0, vmax)
+        if self._mem[_DRIVE_MODE] & DriveMode.TIME_BASED_PROFILE:
+            self._trajectory = time_profile(now, p, goal, pv / 1000.0, pa / 1000.0, vmax)
         else:
             if pv > 0:
                 vmax = min(vmax, pv * PULSES_PER_S_PER_VELOCITY_UNIT)
             accel = pa * PULSES_PER_S2_PER_ACCEL_UNIT if pa > 0 else math.inf
-            self._profile = velocity_profile(now, p, v, goal, vmax, accel)
+            self._trajectory = velocity_profile(now, p, v, goal, vmax, accel)
 
     def _plan_velocity(self) -> None:
         p, v, _ = self._state
@@ -303,22 +332,24 @@ class SimServo:
         if self._reverse:
             goal_v = -goal_v
         pa = self._get("Profile Acceleration")
-        self._profile = ramp_profile(self._t, p, v, goal_v, pa * PULSES_PER_S2_PER_ACCEL_UNIT if pa > 0 else math.inf)
+        self._trajectory = ramp_profile(
+            self._t, p, v, goal_v, pa * PULSES_PER_S2_PER_ACCEL_UNIT if pa > 0 else math.inf
+        )
 
     def _torque_on(self) -> None:
         self._fresh = None
-        self._mem[64] = 1
+        self._mem[_TORQUE_ENABLE] = 1
         present = round(self._present_from_actual(self._state[0]))
         self._set("Goal Position", max(-1_048_575, min(1_048_575, present)))
-        self._profile = rest(self._state[0])
+        self._trajectory = rest(self._state[0])
         self._state = (self._state[0], 0.0, 0.0)
         if self._mode() == OperatingMode.VELOCITY:
             self._plan_velocity()
 
     def _torque_off(self) -> None:
         self._fresh = None
-        self._mem[64] = 0
-        self._profile = rest(self._state[0])
+        self._mem[_TORQUE_ENABLE] = 0
+        self._trajectory = rest(self._state[0])
         self._state = (self._state[0], 0.0, 0.0)
 
     def update(self, now: float | None = None) -> None:
@@ -336,42 +367,43 @@ class SimServo:
     def _advance(self, now: float) -> None:
         if now < self._t:
             return
-        if self._mem[64] and self._mode() in (*_POSITION_MODES, OperatingMode.VELOCITY):
-            self._state = self._profile.state(now)
+        if self._mem[_TORQUE_ENABLE] and self._mode() in (*_POSITION_MODES, OperatingMode.VELOCITY):
+            self._state = self._trajectory.state(now)
         self._t = now
 
     def _refresh_present(self, now: float) -> None:
         mem = self._mem
         p, v, a = self._state
-        torque = mem[64]
-        sign = -1.0 if mem[10] & 0x01 else 1.0
-        homing = _I32.unpack_from(mem, 20)[0]
+        torque = mem[_TORQUE_ENABLE]
+        sign = -1.0 if mem[_DRIVE_MODE] & _REVERSE_BIT else 1.0
+        homing = _I32.unpack_from(mem, _HOMING_OFFSET)[0]
         present = (PULSES_PER_REV - p if sign < 0 else p) + homing
-        moving_profile = bool(torque) and not self._profile.done(now)
+        moving_profile = bool(torque) and not self._trajectory.done(now)
         velocity_units = round(sign * v / PULSES_PER_S_PER_VELOCITY_UNIT)
         position = max(-(2**31), min(2**31 - 1, round(present)))
-        _I32.pack_into(mem, 128, velocity_units)
-        _I32.pack_into(mem, 132, position)
-        _I32.pack_into(mem, 136, velocity_units)
-        _I32.pack_into(mem, 140, position)
-        threshold = _I32.unpack_from(mem, 24)[0]
-        mem[122] = 1 if moving_profile or abs(velocity_units) > threshold else 0
-        in_position = not moving_profile and abs(_I32.unpack_from(mem, 116)[0] - present) <= max(threshold, 1)
-        mem[123] = (
+        _I32.pack_into(mem, _PRESENT_VELOCITY, velocity_units)
+        _I32.pack_into(mem, _PRESENT_POSITION, position)
+        _I32.pack_into(mem, _VELOCITY_TRAJECTORY, velocity_units)
+        _I32.pack_into(mem, _POSITION_TRAJECTORY, position)
+        threshold = _I32.unpack_from(mem, _MOVING_THRESHOLD)[0]
+        mem[_MOVING] = 1 if moving_profile or abs(velocity_units) > threshold else 0
+        goal = _I32.unpack_from(mem, _GOAL_POSITION)[0]
+        in_position = not moving_profile and abs(goal - present) <= max(threshold, 1)
+        mem[_MOVING_STATUS] = (
             (1 if in_position and torque else 0)
             | (2 if moving_profile else 0)
-            | ((self._profile.shape & 3) << 4 if moving_profile else 0)
+            | ((self._trajectory.shape & 3) << 4 if moving_profile else 0)
         )
-        _U16.pack_into(mem, 120, int((now - self._t_origin) * 1000.0) % 32768)
+        _U16.pack_into(mem, _REALTIME_TICK, int((now - self._t_origin) * 1000.0) % 32768)
         load = self._load_share(v, a) * sign if torque else 0.0
         if self.model.current_unit_ma is None:
-            _I16.pack_into(mem, 126, round(max(-1.0, min(1.0, load)) * 1000))
+            _I16.pack_into(mem, _PRESENT_CURRENT, round(max(-1.0, min(1.0, load)) * 1000))
         else:
             ma = load * self.model.stall_current * 1000.0
-            _I16.pack_into(mem, 126, max(-32768, min(32767, round(ma / self.model.current_unit_ma))))
-        _I16.pack_into(mem, 124, round(sign * v / self._no_load * 885) if torque else 0)
-        _U16.pack_into(mem, 144, max(0, min(65535, round(self.input_voltage / VOLT_PER_UNIT))))
-        mem[146] = max(0, min(255, round(self.ambient_temperature + 4.0 * abs(load))))
+            _I16.pack_into(mem, _PRESENT_CURRENT, max(-32768, min(32767, round(ma / self.model.current_unit_ma))))
+        _I16.pack_into(mem, _PRESENT_PWM, round(sign * v / self._no_load * 885) if torque else 0)
+        _U16.pack_into(mem, _PRESENT_INPUT_VOLTAGE, max(0, min(65535, round(self.input_voltage / VOLT_PER_UNIT))))
+        mem[_PRESENT_TEMPERATURE] = max(0, min(255, round(self.ambient_temperature + 4.0 * abs(load))))
         if self._indirect_used:
             self._refresh_indirect()
         self._fresh = now
@@ -420,7 +452,7 @@ class SimServo:
 
     def ping(self) -> bytes:
         """The PING reply parameters: model number LSB, MSB, firmware version."""
-        return bytes(self._mem[0:2]) + bytes((self._mem[6],))
+        return bytes(self._mem[_MODEL_NUMBER : _MODEL_NUMBER + 2]) + bytes((self._mem[_FIRMWARE_VERSION],))
 
     def read(self, address: int, length: int) -> tuple[int, bytes]:
         """READ: ``(error, data)``; ``data`` is empty on error."""
@@ -453,7 +485,7 @@ class SimServo:
         if error:
             return error
         self._registered = (address, bytes(data))
-        self._mem[69] = 1
+        self._mem[_REGISTERED_INSTRUCTION] = 1
         return StatusError.NONE
 
     def action(self) -> int:
@@ -462,7 +494,7 @@ class SimServo:
             return StatusError.INSTRUCTION
         address, data = self._registered
         self._registered = None
-        self._mem[69] = 0
+        self._mem[_REGISTERED_INSTRUCTION] = 0
         return self.write(address, data)
 
     def reboot(self) -> None:
@@ -487,12 +519,12 @@ class SimServo:
         if option not in tuple(FactoryReset):
             return StatusError.DATA_RANGE
         self.update()
-        keep_id, keep_baud = self._mem[7], self._mem[8]
+        keep_id, keep_baud = self._mem[_ID], self._mem[_BAUD_RATE]
         self._mem[:] = self.model.defaults()
         if option in (FactoryReset.EXCEPT_ID, FactoryReset.EXCEPT_ID_AND_BAUD):
-            self._mem[7] = keep_id
+            self._mem[_ID] = keep_id
         if option == FactoryReset.EXCEPT_ID_AND_BAUD:
-            self._mem[8] = keep_baud
+            self._mem[_BAUD_RATE] = keep_baud
         self._registered = None
         self._torque_off()
         self._set("Goal Position", round(self._present_from_actual(self._state[0])))
@@ -506,10 +538,10 @@ class SimServo:
         if bytes(params) != CLEAR_MULTI_TURN:
             return StatusError.DATA_RANGE
         self.update()
-        if self._mem[122]:
+        if self._mem[_MOVING]:
             return StatusError.RESULT_FAIL
         p = self._state[0] % PULSES_PER_REV
-        self._profile = rest(p)
+        self._trajectory = rest(p)
         self._state = (p, 0.0, 0.0)
         self._fresh = None
         self.update()
@@ -532,7 +564,7 @@ class SimServo:
         for reg in regs:
             if not reg.writable:
                 return StatusError.ACCESS, []
-            if reg.eeprom and self._mem[64]:
+            if reg.eeprom and self._mem[_TORQUE_ENABLE]:
                 return StatusError.ACCESS, []
         new = {r.name: r.decode(data[r.address - address : r.end - address]) for r in regs}
 
@@ -566,26 +598,26 @@ class SimServo:
             name = reg.name
             if name == "Torque Enable":
                 if raw[0] and not old[0]:
-                    if self._mem[70] & self._mem[63]:
-                        self._mem[64] = 0  # shut down: only REBOOT brings torque back
+                    if self._mem[_HARDWARE_ERROR_STATUS] & self._mem[_SHUTDOWN]:
+                        self._mem[_TORQUE_ENABLE] = 0  # shut down: only REBOOT brings torque back
                     else:
                         effects.append(self._torque_on)
                 elif not raw[0] and old[0]:
                     effects.append(self._torque_off)
             elif name == "Goal Position":
                 if (
-                    not self._mem[64]
-                    and self._mem[10] & DriveMode.TORQUE_ON_BY_GOAL
-                    and not self._mem[70] & self._mem[63]
+                    not self._mem[_TORQUE_ENABLE]
+                    and self._mem[_DRIVE_MODE] & DriveMode.TORQUE_ON_BY_GOAL
+                    and not self._mem[_HARDWARE_ERROR_STATUS] & self._mem[_SHUTDOWN]
                 ):
-                    self._mem[64] = 1
-                if self._mem[64] and self._mode() in _POSITION_MODES:
+                    self._mem[_TORQUE_ENABLE] = 1
+                if self._mem[_TORQUE_ENABLE] and self._mode() in _POSITION_MODES:
                     effects.append(self._plan_goal)
             elif name == "Goal Velocity":
-                if self._mem[64] and self._mode() == OperatingMode.VELOCITY:
+                if self._mem[_TORQUE_ENABLE] and self._mode() == OperatingMode.VELOCITY:
                     effects.append(self._plan_velocity)
             elif name == "Operating Mode" and raw != old:
-                effects.append(lambda: setattr(self, "_profile", rest(self._state[0])))
+                effects.append(lambda: setattr(self, "_trajectory", rest(self._state[0])))
             elif name.startswith("Indirect Address"):
                 self._indirect_used = True
             elif name.startswith("Indirect Data"):

@@ -12,7 +12,8 @@ URL grammar::
     sim://?ids=1-6,8&model=XM430-W350[&OPTIONS]
                                       servos of one model (default XL430-W250) with these IDs
     sim://@NAME                       the SimBus registered in this process with sim.register(NAME, bus);
-                                      sim.attach(bus) registers it and returns the URL
+                                      sim.attach(bus) registers it and returns the URL, sim.unregister(url)
+                                      forgets it
 
     OPTIONS (ARM and ids forms):
       baud=BPS          the servos' Baud Rate item (default: the arm's, or the port's baud rate)
@@ -37,14 +38,21 @@ import logging
 import threading
 import time
 from collections import deque
+from typing import TYPE_CHECKING, Any
 from urllib.parse import parse_qs, urlsplit
 
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException
 
+from drivers.control_table import parse_ids
 from retarget.control.clock import MonotonicClock, VirtualClock
 from retarget.errors import ConfigError, RetargetError
-from sim.bus import Reply, SimBus
+from sim.bus import ScheduledReply, SimBus
 from sim.faults import QUERY_KEYS, Faults
+
+if TYPE_CHECKING:
+    from _typeshed import ReadableBuffer
+
+__all__ = ["Serial", "attach", "bus_from_url", "parse_ids", "register", "registered", "unregister"]
 
 log = logging.getLogger(__name__)
 
@@ -52,28 +60,63 @@ _REGISTRY: dict[str, SimBus] = {}
 _REGISTRY_LOCK = threading.Lock()
 _NAMES = itertools.count(1)
 _BUS_KEYS = frozenset({"ids", "model", "baud", "rdt", "boot_ms", "clock"})
+_PREFIX = "sim://@"
 
 
 def register(name: str, bus: SimBus) -> str:
-    """Make ``bus`` reachable as ``sim://@name``; returns that URL.  Replaces a bus of the same name."""
+    """Make ``bus`` reachable as ``sim://@name`` in this process; returns that URL.
+
+    ``name``: no ``/`` or ``?`` (ValueError).  Replaces a bus registered under the same name.  Undo with
+    :func:`unregister` (the URL or the name).
+
+    >>> from retarget.control.clock import VirtualClock
+    >>> url = register("doc-two-servos", SimBus.from_ids([1, 2], clock=VirtualClock()))
+    >>> url, registered(url).ids
+    ('sim://@doc-two-servos', (1, 2))
+    >>> unregister(url)
+    """
     if not name or "/" in name or "?" in name:
         raise ValueError(f"Expected a name without '/' or '?', got {name!r}")
     with _REGISTRY_LOCK:
         _REGISTRY[name] = bus
-    return f"sim://@{name}"
+    return f"{_PREFIX}{name}"
 
 
 def attach(bus: SimBus) -> str:
-    """Register ``bus`` under a fresh name and return its ``sim://@...`` URL."""
+    """Register ``bus`` under a fresh name (``bus1``, ``bus2``, ...) and return its ``sim://@...`` URL.
+
+    Open the URL like any port (``serial.serial_for_url``, ``drivers.DynamixelBus``); :func:`unregister` it
+    when done.  The port then shares the bus object, so a test reads the servos the driver wrote::
+
+        >>> import serial
+        >>> from retarget.control.clock import VirtualClock
+        >>> bus = SimBus.from_ids([3], clock=VirtualClock())
+        >>> url = attach(bus)
+        >>> url.startswith("sim://@bus")
+        True
+        >>> port = serial.serial_for_url(url, baudrate=57600, timeout=0)
+        >>> port.bus is bus, bus.line_baud  # servo 3 listens at 1 Mbps: on this line it stays silent
+        (True, 57600)
+        >>> port.close()
+        >>> unregister(url)
+    """
     return register(f"bus{next(_NAMES)}", bus)
 
 
-def unregister(name: str) -> None:
+def _name(name_or_url: str) -> str:
+    return name_or_url.removeprefix(_PREFIX)
+
+
+def unregister(name_or_url: str) -> None:
+    """Forget the bus registered as ``sim://@NAME``: give the URL :func:`register`/:func:`attach` returned, or
+    ``NAME``.  Nothing happens when none is registered; ports already open keep their bus."""
     with _REGISTRY_LOCK:
-        _REGISTRY.pop(name, None)
+        _REGISTRY.pop(_name(name_or_url), None)
 
 
-def registered(name: str) -> SimBus:
+def registered(name_or_url: str) -> SimBus:
+    """The bus registered as ``sim://@NAME`` (the URL or ``NAME``); KeyError listing the names otherwise."""
+    name = _name(name_or_url)
     with _REGISTRY_LOCK:
         try:
             return _REGISTRY[name]
@@ -82,25 +125,24 @@ def registered(name: str) -> SimBus:
             raise KeyError(f"no SimBus registered as {name!r} (registered: {known})") from None
 
 
-def parse_ids(text: str) -> list[int]:
-    """``"1-6,8"`` -> ``[1, 2, 3, 4, 5, 6, 8]``; ConfigError on anything else."""
-    ids: list[int] = []
-    try:
-        for part in text.split(","):
-            part = part.strip()
-            if not part:
-                continue
-            lo, sep, hi = part.partition("-")
-            ids.extend(range(int(lo), int(hi) + 1) if sep else [int(lo)])
-    except ValueError:
-        raise ConfigError("Expected IDs like 1-6,8", key="ids", value=text) from None
-    if not ids or any(not 0 <= i <= 252 for i in ids) or len(set(ids)) != len(ids):
-        raise ConfigError("Expected distinct IDs in 0..252, like 1-6,8", key="ids", value=text)
-    return ids
-
-
 def bus_from_url(url: str, *, port_baud: int | None = None) -> SimBus:
-    """Build (or look up, for ``sim://@NAME``) the bus a ``sim://`` URL names.  ConfigError/KeyError on bad input."""
+    """Build the bus a ``sim://`` URL describes (the grammar is in the module docstring), or for ``sim://@NAME``
+    the registered one.
+
+    ``port_baud``: the baud rate the port is opened at (bps), the servos' default for ``sim://?ids=...``
+    without ``baud=``.  ConfigError naming the option on a bad value (``path`` is the URL), KeyError for an
+    unknown arm, model or registered name.
+
+    >>> bus = bus_from_url("sim://?ids=1-3&model=XM430-W350&rdt=0&clock=virtual")
+    >>> bus.ids, bus.servo(1).model.name, bus.servo(1).return_delay, type(bus.clock).__name__
+    ((1, 2, 3), 'XM430-W350', 0.0, 'VirtualClock')
+    >>> bus_from_url("sim://wx250s?baud=57600").servo(9).baud
+    57600
+    >>> bus_from_url("sim://?ids=1&rdt=fast")
+    Traceback (most recent call last):
+    ...
+    retarget.errors.ConfigError: sim://?ids=1&rdt=fast: rdt: Expected an integer (got 'fast')
+    """
     parts = urlsplit(url)
     if parts.scheme.lower() != "sim":
         raise ConfigError("Expected a URL starting with sim://", key="url", value=url)
@@ -124,13 +166,21 @@ def bus_from_url(url: str, *, port_baud: int | None = None) -> SimBus:
         raise ConfigError("Expected clock=real or clock=virtual", key="clock", value=clock_name)
     clock = VirtualClock() if clock_name == "virtual" else MonotonicClock()
     faults = Faults.from_query(query, source=url)
-    baud_text, rdt_text, boot_text = last("baud"), last("rdt"), last("boot_ms")
-    try:
-        baud = int(baud_text) if baud_text else None
-        rdt = int(rdt_text) if rdt_text else None
-        boot = float(boot_text) / 1000.0 if boot_text else 0.0
-    except ValueError:
-        raise ConfigError("Expected numbers for baud, rdt and boot_ms", key="url", value=url) from None
+
+    def number(key: str) -> float | None:
+        text = last(key)
+        if not text:
+            return None
+        try:
+            return int(text) if key != "boot_ms" else float(text)
+        except ValueError:
+            expected = "Expected a number of milliseconds" if key == "boot_ms" else "Expected an integer"
+            raise ConfigError(expected, path=url, key=key, value=text) from None
+
+    baud_value, rdt_value, boot_ms = number("baud"), number("rdt"), number("boot_ms")
+    baud = None if baud_value is None else int(baud_value)
+    rdt = None if rdt_value is None else int(rdt_value)
+    boot = 0.0 if boot_ms is None else boot_ms / 1000.0
     if where:
         if "ids" in query or "model" in query:
             raise ConfigError("give either an arm name or ids=/model=, not both", key="url", value=url)
@@ -156,12 +206,18 @@ class Serial(SerialBase):
     BAUDRATES = (9600, 19200, 38400, 57600, 115200, 230400, 460800, 500000, 576000, 921600, 1000000, 1152000,
                  2000000, 2500000, 3000000, 3500000, 4000000, 4500000)  # fmt: skip
 
-    def __init__(self, *args: object, **kwargs: object):
+    # set by SerialBase.__init__ and its setters; the pyserial stubs declare only the public properties, and the
+    # hot path (read, once per SDK poll) reads the attributes
+    _port: str | None
+    _baudrate: int
+    _timeout: float | None
+
+    def __init__(self, *args: Any, **kwargs: Any):
         self.bus: SimBus | None = None
         self._virtual = False  #: the bus runs on a VirtualClock: waiting for a reply advances it
         self._rx = bytearray()
-        self._pending: deque[Reply] = deque()
-        super().__init__(*args, **kwargs)  # type: ignore[arg-type]
+        self._pending: deque[ScheduledReply] = deque()
+        super().__init__(*args, **kwargs)
 
     # ------------------------------------------------------------------ open / close
 
@@ -198,16 +254,16 @@ class Serial(SerialBase):
 
     def _collect(self) -> None:
         """Move every reply whose last byte is on the wire by now into the receive buffer."""
-        if not self._pending:
+        if not self._pending or self.bus is None:
             return
-        now = self.bus.clock.now()  # type: ignore[union-attr]
+        now = self.bus.clock.now()
         while self._pending and self._pending[0].due <= now:
             self._rx += self._pending.popleft().data
 
-    def write(self, data: bytes | bytearray | memoryview) -> int:
+    def write(self, b: ReadableBuffer, /) -> int:
         if not self.is_open or self.bus is None:
             raise PortNotOpenError()
-        data = bytes(data)
+        data = bytes(b)
         replies = self.bus.feed(data)
         if replies:
             merged = sorted([*self._pending, *replies], key=lambda r: r.due)
@@ -224,9 +280,9 @@ class Serial(SerialBase):
             rx = self._rx
             if not rx:
                 return b""
-            out = bytes(rx[:size])
+            polled = bytes(rx[:size])
             del rx[:size]
-            return out
+            return polled
         deadline = None if timeout is None else time.monotonic() + timeout
         out = bytearray()
         while True:

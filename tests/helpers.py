@@ -19,7 +19,7 @@ import serial
 from dynamixel_sdk import PacketHandler, PortHandler
 
 import sim
-from drivers.control_table import Instruction
+from drivers.control_table import Instruction, common_register
 from drivers.units import ticks_to_rad
 from retarget.control.clock import VirtualClock
 from retarget.mapping import Targets, Workspace
@@ -229,11 +229,20 @@ def torque(simbus, arm) -> list[int]:
 
 
 # ------------------------------------------------------------------ the simulated wire
-GOAL = 116
+def address(name: str) -> int:
+    """The address of register ``name``, the same on every X model (``drivers.control_table.common_register``)."""
+    return common_register(name).address
+
+
+GOAL = address("Goal Position")  #: 4 bytes
+PRESENT = address("Present Position")  #: 4 bytes
+TORQUE = address("Torque Enable")  #: 1 byte
+PROFILE_VELOCITY = address("Profile Velocity")  #: 4 bytes
+PROFILE_ACCELERATION = address("Profile Acceleration")  #: 4 bytes
 
 
 def goal_writes(sim_bus: sim.SimBus) -> list[dict[int, int]]:
-    """Every Goal Position SYNC_WRITE the simulated wire carried, decoded: [{id: ticks}, ...]."""
+    """Every Goal Position SYNC_WRITE the simulated wire carried, decoded: [{id: pulses}, ...]."""
     out = []
     for entry in sim_bus.log:
         p = entry.params
@@ -282,10 +291,10 @@ class Rig:
 def open_rig(bus: sim.SimBus, transport: str) -> tuple[Rig, object]:
     """Open ``bus`` over ``transport`` ("inproc" or "pty"); returns the rig and the resource to close."""
     if transport == "inproc":
-        name = f"test-{id(bus)}"
-        port = UrlPortHandler(sim.register(name, bus))
+        url = sim.attach(bus)
+        port = UrlPortHandler(url)
         assert port.openPort()
-        return Rig(bus, bus.clock, port, PacketHandler(2.0), transport), name
+        return Rig(bus, bus.clock, port, PacketHandler(2.0), transport), url
     server = PtyServer(bus).start()
     port = PortHandler(server.path)  # the plain SDK class
     assert port.setBaudRate(bus.baud)

@@ -43,6 +43,15 @@ OPTIONS: dict[str, str] = {
     "margin": "--margin",
     "box": "--box",
     "max_bytes": "--max-bytes",
+    # drivers.control_table.parse_ids; sim.Faults.from_options (retarget sim's fault options)
+    "ids": "--ids",
+    "drop": "--drop",
+    "corrupt": "--corrupt",
+    "delay_ms": "--delay-ms",
+    "unplug": "--unplug",
+    "hwerror": "--hwerror",
+    "seed": "--seed",
+    "wire": "--wire",
 }
 
 

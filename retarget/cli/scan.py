@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import Any
 
+from drivers.control_table import parse_ids
+from drivers.scan import ALL_BAUDS, scan
 from retarget.cli import print_json
 from retarget.errors import BusError
 
@@ -20,8 +23,8 @@ exit status: 0 when at least one servo answered, 4 when none did or the port fai
 """
 
 
-def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    parser = subparsers.add_parser(
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+    parser: argparse.ArgumentParser = subparsers.add_parser(
         "scan",
         help="list the Dynamixel servos on a port: ID, model, firmware, baud",
         description="Ping every ID on a serial port (or pyserial URL) and list the servos that answer.",
@@ -43,7 +46,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
 
 
 def run(args: argparse.Namespace) -> int:
-    from drivers.scan import ALL_BAUDS, parse_ids, scan
 
     ids = parse_ids(args.ids)
     bauds = ALL_BAUDS if args.all_bauds else (args.baud if args.baud is not None else 1_000_000,)

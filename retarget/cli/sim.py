@@ -6,9 +6,15 @@ import argparse
 import signal
 import sys
 import threading
+from typing import Any
 
+from drivers.control_table import parse_ids
 from retarget.cli._arm import add_link_arguments, load_arm_option
+from retarget.control.clock import MonotonicClock
 from retarget.errors import ConfigError
+from sim.bus import SimBus
+from sim.faults import Faults
+from sim.server import PtyServer, SimServer, TcpServer
 
 EPILOG = """\
 examples:
@@ -28,8 +34,8 @@ Ctrl-C or SIGTERM stops the server cleanly (exit status 0).
 """
 
 
-def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    parser = subparsers.add_parser(
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+    parser: argparse.ArgumentParser = subparsers.add_parser(
         "sim",
         help="serve simulated Dynamixel servos on a pty or loopback TCP",
         description=(
@@ -83,12 +89,8 @@ def _tcp_address(text: str) -> tuple[str, int]:
     return (host if sep and host else "127.0.0.1"), number
 
 
-def build_bus(args: argparse.Namespace):
+def build_bus(args: argparse.Namespace) -> SimBus:
     """The SimBus the options describe (real-time clock)."""
-    from retarget.control.clock import MonotonicClock
-    from sim import SimBus
-    from sim.faults import Faults
-    from sim.transport import parse_ids
 
     faults = Faults.from_options(
         drop=args.drop,
@@ -98,7 +100,6 @@ def build_bus(args: argparse.Namespace):
         hwerror=args.hwerror,
         wire=args.wire,
         seed=args.seed,
-        source="",
     )
     clock = MonotonicClock()
     if args.ids is not None:
@@ -129,7 +130,6 @@ def build_bus(args: argparse.Namespace):
 
 
 def run(args: argparse.Namespace) -> int:
-    from sim.server import PtyServer, TcpServer
 
     try:
         bus = build_bus(args)
@@ -139,13 +139,14 @@ def run(args: argparse.Namespace) -> int:
         if isinstance(exc, ConfigError):
             raise
         raise ConfigError(str(exc), key="--baud") from None
+    server: SimServer
     if args.tcp is not None:
         host, port = _tcp_address(args.tcp)
-        server = TcpServer(bus, host, port)
-        where = server.url
+        tcp = TcpServer(bus, host, port)
+        server, where = tcp, tcp.url
     else:
-        server = PtyServer(bus)
-        where = server.path
+        pty = PtyServer(bus)
+        server, where = pty, pty.path
     stop = threading.Event()
 
     def on_signal(signum: int, frame: object) -> None:

@@ -289,7 +289,7 @@ def _interactive(
     telemetry: TelemetryWriter | None,
 ) -> TeleopResult:
     """The curses UI around the loop: keys feed a KeySource, the screen is drawn from on_tick."""
-    import curses
+    import curses  # here, not at the top: Windows Pythons have no curses, and only --interactive needs it
 
     q0 = setup.bus.read_positions()
     jog = Jog(target=tool_point(arm, q0), home=tool_point(arm, arm.home), bounds=gate.bounds)

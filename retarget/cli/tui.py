@@ -138,7 +138,7 @@ class TerminalUI:
     key source closed)."""
 
     def __init__(self, screen: Any, source: KeySource, arm: Arm, stop: Callable[[], None]):
-        import curses
+        import curses  # only --interactive needs it; Windows Pythons have none (see retarget.cli.teleop)
 
         self.curses = curses
         self.screen = screen

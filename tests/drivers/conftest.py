@@ -37,9 +37,9 @@ def sim_bus(arm: Arm, clock: VirtualClock) -> Iterator[sim.SimBus]:
 @pytest.fixture
 def url(sim_bus: sim.SimBus) -> Iterator[str]:
     """The in-process URL of ``sim_bus``."""
-    name = f"drivers-{id(sim_bus)}"
-    yield sim.register(name, sim_bus)
-    sim.unregister(name)
+    url = sim.register(f"drivers-{id(sim_bus)}", sim_bus)
+    yield url
+    sim.unregister(url)
 
 
 needs_pty = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a POSIX pseudo-terminal")

@@ -9,6 +9,7 @@ import pytest
 from drivers import control_table as ct
 from drivers import units
 from retarget.arm import SERVO_MODELS
+from retarget.errors import ConfigError
 
 
 def test_models_are_the_arm_models():
@@ -91,11 +92,55 @@ def test_covering_and_at():
 
 
 def test_units_and_names():
-    assert ct.rad_to_pulses(2 * math.pi) == pytest.approx(4096)
-    assert ct.rad_to_pulses(1234.5 * units.RAD_PER_TICK) == pytest.approx(1234.5)
+    assert ct.RAD_PER_PULSE * ct.PULSES_PER_REV == pytest.approx(2 * math.pi)
+    assert units.RAD_PER_PULSE is ct.RAD_PER_PULSE and units.PULSES_PER_REV == 4096
     # drivers.units encodes joints with the table's units, not copies of them
     assert units.velocity_units_to_rad_s(1) == pytest.approx(0.229 * 2 * math.pi / 60)
     assert units.rad_s2_to_accel_units(214.577 * 2 * math.pi / 3600) == 1
     assert ct.RETURN_DELAY_UNIT_S == 2e-6 and ct.VOLT_PER_UNIT == 0.1
     assert ct.hardware_error_names(0x25) == ("input_voltage", "overheating", "overload")
     assert ct.BAUD_CODES[1_000_000] == 3 and ct.BAUD_RATES[1] == 57600
+
+
+def test_common_register_is_the_same_on_every_model():
+    goal = ct.common_register("Goal Position")
+    assert (goal.address, goal.size) == (116, 4)
+    assert all(m.register("Goal Position") == goal for m in ct.MODELS.values())
+    assert ct.common_register("Present Current").address == ct.XL430_W250.register("Present Load").address == 126
+    with pytest.raises(KeyError, match="no model has a register 'Goal Torque'"):
+        ct.common_register("Goal Torque")
+    with pytest.raises(ValueError, match="'Indirect Data 1' differs between models"):
+        ct.common_register("Indirect Data 1")  # 224 on X430/X540, 208 on XL330
+
+
+@pytest.mark.parametrize(
+    ("text", "ids"),
+    [
+        ("1-3", (1, 2, 3)),
+        ("5", (5,)),
+        ("1,3,5-6", (1, 3, 5, 6)),
+        (" 8 , 1 - 2", (1, 2, 8)),
+        ("0-252", tuple(range(253))),
+    ],
+    ids=["range", "one", "mixed", "spaces-and-order", "all"],
+)
+def test_parse_ids(text, ids):
+    assert ct.parse_ids(text) == ids
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        ("a-b", "IDs like 1-6 or 1,3,5 .got 'a-b'"),
+        ("5-1", "within 0..252, low before high .got '5-1'"),
+        ("253", "within 0..252"),
+        ("-", "IDs like"),
+        ("1,,2", "IDs like"),
+        ("1-5,4", "distinct IDs; repeated: 4"),
+    ],
+    ids=["letters", "reversed", "too-high", "dash", "empty-part", "overlap"],
+)
+def test_parse_ids_rejects(text, match):
+    with pytest.raises(ConfigError, match=r"^ids: .*" + match) as info:
+        ct.parse_ids(text)
+    assert info.value.key == "ids"  # the library names its field; the CLI maps it to --ids

@@ -20,8 +20,8 @@ from tests.helpers import goal_writes, torques
 
 
 def expected_limits(lower: float, upper: float, offset: int = 0) -> tuple[int, int]:
-    lo = math.ceil(2048 + offset + lower / units.RAD_PER_TICK - 1e-6)
-    hi = math.floor(2048 + offset + upper / units.RAD_PER_TICK + 1e-6)
+    lo = math.ceil(2048 + offset + lower / units.RAD_PER_PULSE - 1e-6)
+    hi = math.floor(2048 + offset + upper / units.RAD_PER_PULSE + 1e-6)
     return max(lo, 0), min(hi, 4095)
 
 
@@ -54,7 +54,7 @@ def test_connect_configures_every_servo_then_enables_torque(make_bus, transport_
     )
     assert gripper.get("Torque Enable") == 1
     # enabling torque did not move anything: every joint still reads its starting (rest) pose
-    np.testing.assert_allclose(bus.read_positions(), arm.rest, atol=units.RAD_PER_TICK)
+    np.testing.assert_allclose(bus.read_positions(), arm.rest, atol=units.RAD_PER_PULSE)
     assert bus.status().retries == 0  # a clean bus needs no retry: no stale reply was left behind
     bus.close()  # before the pty/TCP server goes away
 
@@ -94,7 +94,7 @@ def test_wrong_models_fail_before_any_torque(make_bus, arm, clock):
         assert all(len(s.writes) == 0 for s in wrong.servos)  # nothing was written at all
         assert not bus.connected
     finally:
-        sim.unregister("drivers-wrong-models")
+        sim.unregister(url)
 
 
 def test_missing_servos_are_named_with_a_hint(make_bus, arm, clock):
@@ -109,7 +109,7 @@ def test_missing_servos_are_named_with_a_hint(make_bus, arm, clock):
         assert set(torques(partial).values()) == {0}
         assert not bus.connected
     finally:
-        sim.unregister("drivers-missing")
+        sim.unregister(url)
 
 
 def test_wrong_baud_names_every_servo(make_bus, url, arm):
@@ -135,7 +135,7 @@ def test_goals_round_trip_through_the_servos_seeded(make_bus, transport_url, sim
         bus.write_goals(q)
         bus.read_positions()  # a reply: over a pty or TCP the server has now taken the goal, at this clock time
         clock.advance(5.0)  # long enough for any move at pi rad/s
-        np.testing.assert_allclose(bus.read_positions(), q, atol=units.RAD_PER_TICK / 2 + 1e-9)
+        np.testing.assert_allclose(bus.read_positions(), q, atol=units.RAD_PER_PULSE / 2 + 1e-9)
     bus.close()  # before the pty/TCP server goes away
 
 
@@ -146,7 +146,7 @@ def test_shadows_are_mirrored_in_the_same_sync_write(make_bus, url, sim_bus, clo
     bus.write_goals(q)
     last = goal_writes(sim_bus)[-1]
     assert sorted(last) == [1, 2, 3, 4, 5, 6, 7, 8]  # shadows 3 and 5 in the same packet
-    assert last[2] == last[3] == units.rad_to_ticks(0.5) and last[4] == last[5] == units.rad_to_ticks(-0.7)
+    assert last[2] == last[3] == units.rad_to_pulses(0.5) and last[4] == last[5] == units.rad_to_pulses(-0.7)
     clock.advance(5.0)
     for primary, shadow in ((2, 3), (4, 5)):
         p, s = sim_bus.servo(primary), sim_bus.servo(shadow)
@@ -165,7 +165,7 @@ def test_limits_are_clamped_before_the_wire(make_bus, url, sim_bus, arm, scale):
     assert writes
     for packet in writes:
         for dxl_id, ticks in packet.items():
-            assert plans[dxl_id].min_tick <= ticks <= plans[dxl_id].max_tick, (dxl_id, ticks)
+            assert plans[dxl_id].min_pulse <= ticks <= plans[dxl_id].max_pulse, (dxl_id, ticks)
     for servo in sim_bus.servos:
         assert servo.get("Min Position Limit") <= servo.get("Goal Position") <= servo.get("Max Position Limit")
 
@@ -177,9 +177,9 @@ def test_step_limit_from_max_velocity(make_bus, url, sim_bus, arm):
     start = bus.read_positions()
     bus.write_goals(start + 1.0)  # one radian on every joint, in one tick
     first = goal_writes(sim_bus)[-1]
-    max_ticks = arm.max_velocity[0] * dt / units.RAD_PER_TICK
+    max_ticks = arm.max_velocity[0] * dt / units.RAD_PER_PULSE
     for joint_index, dxl_id in enumerate((1, 2, 4, 6, 7, 8)):
-        before = units.rad_to_ticks(start[joint_index])
+        before = units.rad_to_pulses(start[joint_index])
         assert abs(first[dxl_id] - before) <= math.ceil(max_ticks), dxl_id
     bus.write_goals(start + 1.0)  # the next tick takes the next step
     assert goal_writes(sim_bus)[-1][1] > first[1]
@@ -215,7 +215,7 @@ def test_gripper_is_clamped_and_read_back(make_bus, url, sim_bus, arm, clock):
     bus.connect()
     bus.write_gripper(10.0)
     clock.advance(5.0)
-    assert bus.read_gripper() == pytest.approx(arm.gripper.upper, abs=units.RAD_PER_TICK)
+    assert bus.read_gripper() == pytest.approx(arm.gripper.upper, abs=units.RAD_PER_PULSE)
     assert sim_bus.servo(9).get("Goal Position") == sim_bus.servo(9).get("Max Position Limit")
 
 
@@ -235,7 +235,7 @@ def test_dropped_replies_are_retried(make_bus, arm, clock):
         status = bus.status()
         assert status.retries > 0 and status.errors == 0 and status.ticks == 15
     finally:
-        sim.unregister("drivers-lossy")
+        sim.unregister(url)
 
 
 @pytest.mark.parametrize("fast_read", [True, False], ids=["fast-sync-read", "sync-read"])
@@ -313,8 +313,8 @@ def test_close_rest_moves_to_rest_then_torque_off(make_bus, url, sim_bus, arm, c
     # with torque off nothing moves: the present position is where the servos were when torque went off
     for joint, rest in zip(arm.joints, arm.rest, strict=True):
         for s in joint.servos:
-            present = units.ticks_to_rad(sim_bus.servo(s.id).get("Present Position"))
-            assert present == pytest.approx(rest, abs=bus.rest_tolerance + units.RAD_PER_TICK), s.id
+            present = units.pulses_to_rad(sim_bus.servo(s.id).get("Present Position"))
+            assert present == pytest.approx(rest, abs=bus.rest_tolerance + units.RAD_PER_PULSE), s.id
 
 
 @pytest.mark.parametrize(("mode", "torque"), [(ShutdownMode.OFF, 0), (ShutdownMode.HOLD, 1)], ids=["off", "hold"])
@@ -419,7 +419,7 @@ def test_read_state_reports_health_in_si_units(make_bus, url, sim_bus, arm):
     sim_bus.servo(8).ambient_temperature = 55.0
     state = bus.read_state()
     assert state.ids == (1, 2, 3, 4, 5, 6, 7, 8, 9)
-    np.testing.assert_allclose(state.position[[0, 1, 3, 5, 6, 7]], arm.rest, atol=units.RAD_PER_TICK)
+    np.testing.assert_allclose(state.position[[0, 1, 3, 5, 6, 7]], arm.rest, atol=units.RAD_PER_PULSE)
     assert state.position[2] == state.position[1]  # the shoulder shadow reads as its joint
     xm = slice(0, 7)  # XM430-W350: current, 12 V; XL430-W250 (8, 9): load, 11.1 V
     assert np.all(np.isfinite(state.current[xm])) and np.all(np.isnan(state.load[xm]))
@@ -465,12 +465,12 @@ def test_every_bundled_arm_connects_moves_and_rests(name, clock):
             bus.write_goals(arm.home)
             clock.advance(10.0)
             np.testing.assert_allclose(
-                bus.read_positions(), np.clip(arm.home, bus.lower, bus.upper), atol=units.RAD_PER_TICK
+                bus.read_positions(), np.clip(arm.home, bus.lower, bus.upper), atol=units.RAD_PER_PULSE
             )
             assert bus.status().retries == 0
         assert set(torques(simulated).values()) == {0}
     finally:
-        sim.unregister(f"drivers-arm-{name}")
+        sim.unregister(url)
 
 
 def test_step_limit_starts_from_the_clamped_goal(make_bus, url, sim_bus, arm):
@@ -486,12 +486,12 @@ def test_step_limit_starts_from_the_clamped_goal(make_bus, url, sim_bus, arm):
     far[0] = 20.0
     for _ in range(400):
         bus.write_goals(far)
-    top = plan_servos(arm)[0].max_tick  # the waist's upper limit, +pi, on the servo's last tick
-    assert goal_writes(sim_bus)[-1][1] == top == 4095 and bus.upper[0] == units.ticks_to_rad(top)
+    top = plan_servos(arm)[0].max_pulse  # the waist's upper limit, +pi, on the servo's last tick
+    assert goal_writes(sim_bus)[-1][1] == top == 4095 and bus.upper[0] == units.pulses_to_rad(top)
     step = arm.max_velocity[0] * dt  # 20.5 ticks
     for k in range(1, 4):
         bus.write_goals(start)
-        assert goal_writes(sim_bus)[-1][1] == units.rad_to_ticks(bus.upper[0] - k * step), k
+        assert goal_writes(sim_bus)[-1][1] == units.rad_to_pulses(bus.upper[0] - k * step), k
     assert goal_writes(sim_bus)[-1][1] == 4095 - 61  # three steps of 20.5 ticks back
 
 
@@ -502,27 +502,27 @@ def test_a_shadow_with_another_offset_narrows_its_joint(make_bus, clock, arm):
     than its shadow: the two would fight, overloaded)."""
     shoulder = arm.joints[1]
     primary, shadow = shoulder.servos
-    offset = 4095 + 250 - int(units.rad_to_ticks(shoulder.upper))  # shadow's tick at the arm's upper limit: 4345
+    offset = 4095 + 250 - int(units.rad_to_pulses(shoulder.upper))  # shadow's tick at the arm's upper limit: 4345
     moved = dataclasses.replace(shoulder, servos=(primary, dataclasses.replace(shadow, offset=offset)))
     shifted = dataclasses.replace(arm, joints=(arm.joints[0], moved, *arm.joints[2:]))
     plans = {p.id: p for p in plan_servos(shifted)}
-    assert plans[3].max_tick == 4095 and plans[2].max_tick == units.rad_to_ticks(shoulder.upper)
+    assert plans[3].max_pulse == 4095 and plans[2].max_pulse == units.rad_to_pulses(shoulder.upper)
     simulated = sim.SimBus.from_arm(shifted, clock=clock)
     name = f"drivers-shadow-offset-{id(simulated)}"
     try:
         bus = make_bus(sim.register(name, simulated), arm=shifted, shutdown=ShutdownMode.OFF)
         bus.connect()
-        assert bus.upper[1] == pytest.approx(shoulder.upper - 250 * units.RAD_PER_TICK, abs=units.RAD_PER_TICK)
+        assert bus.upper[1] == pytest.approx(shoulder.upper - 250 * units.RAD_PER_PULSE, abs=units.RAD_PER_PULSE)
         q = bus.read_positions()
         for far in (shoulder.upper, shoulder.upper + 1.0):
             q[1] = far
             bus.write_goals(q)
             last = goal_writes(simulated)[-1]
-            assert (last[2], last[3]) == (plans[2].max_tick - 250, 4095), far
+            assert (last[2], last[3]) == (plans[2].max_pulse - 250, 4095), far
         q[1] = shoulder.lower + 0.1  # inside both ranges: the same angle, each on its own zero
         bus.write_goals(q)
         last = goal_writes(simulated)[-1]
-        assert last[2] == units.rad_to_ticks(q[1]) and last[3] == units.rad_to_ticks(q[1], offset=offset)
+        assert last[2] == units.rad_to_pulses(q[1]) and last[3] == units.rad_to_pulses(q[1], offset=offset)
         bus.close()
     finally:
         sim.unregister(name)

@@ -15,13 +15,12 @@ import pytest
 import sim
 from drivers import units
 from drivers.control_table import HardwareError, Instruction
-from drivers.dynamixel_bus import Profile, hold_tick
+from drivers.dynamixel_bus import Profile, hold_pulse, hold_tick
 from retarget.arm import Arm
 from retarget.control.bus import ShutdownMode
 from retarget.errors import BusError
+from tests.helpers import GOAL, TORQUE, torques
 
-GOAL = 116
-TORQUE_ENABLE = 64
 SHOULDER, ELBOW, WRIST_ROTATE = 1, 2, 5  # joint indices of the wx250s
 
 
@@ -39,11 +38,7 @@ def goal_ids_after(sim_bus: sim.SimBus, start: int) -> set[int]:
 
 
 def joint_angle(sim_bus: sim.SimBus, dxl_id: int) -> float:
-    return float(units.ticks_to_rad(sim_bus.servo(dxl_id).get("Present Position")))
-
-
-def torques(sim_bus: sim.SimBus) -> dict[int, int]:
-    return {s.id: s.get("Torque Enable") for s in sim_bus.servos}
+    return float(units.pulses_to_rad(sim_bus.servo(dxl_id).get("Present Position")))
 
 
 def to_home(bus, arm: Arm, clock) -> None:
@@ -80,7 +75,7 @@ def test_rest_after_an_overload_moves_the_healthy_joints_then_torque_off(
         if j != WRIST_ROTATE:
             for s in joint.servos:
                 assert joint_angle(sim_bus, s.id) == pytest.approx(
-                    arm.rest[j], abs=bus.rest_tolerance + units.RAD_PER_TICK
+                    arm.rest[j], abs=bus.rest_tolerance + units.RAD_PER_PULSE
                 ), s.id
     assert 8 not in goal_ids_after(sim_bus, mark)  # the faulted servo was not commanded
     assert goal_ids_after(sim_bus, mark) == {1, 2, 3, 4, 5, 6, 7}
@@ -111,12 +106,12 @@ def test_rest_after_a_shoulder_fault_leaves_the_shoulder_alone(make_bus, url, si
     torque_writes = [k for k, _, v in torque_timeline(sim_bus, mark) if v is not None]
     assert len(reads) > 10 and torque_writes and min(torque_writes) - mark > max(reads)
     for s in (2, 3):  # still at home: neither moved
-        assert joint_angle(sim_bus, s) == pytest.approx(arm.home[SHOULDER], abs=units.RAD_PER_TICK), s
+        assert joint_angle(sim_bus, s) == pytest.approx(arm.home[SHOULDER], abs=units.RAD_PER_PULSE), s
     for j, joint in enumerate(arm.joints):
         if j != SHOULDER:
             for s in joint.servos:
                 assert joint_angle(sim_bus, s.id) == pytest.approx(
-                    arm.rest[j], abs=bus.rest_tolerance + units.RAD_PER_TICK
+                    arm.rest[j], abs=bus.rest_tolerance + units.RAD_PER_PULSE
                 ), s.id
     assert set(torques(sim_bus).values()) == {0}
 
@@ -135,13 +130,13 @@ def test_a_fault_during_the_rest_move_freezes_that_joint_only(make_bus, url, sim
     # the elbow stopped 0.5 s into the move at the rest speed (in 0.229 rpm units); its healthy shadow stopped
     # with it, at most one wait (0.05 s) later
     speed = float(units.velocity_units_to_rad_s(units.rad_s_to_velocity_units(bus.rest_speed)))
-    assert joint_angle(sim_bus, 4) == pytest.approx(0.5 * speed, abs=units.RAD_PER_TICK)
-    assert 0.5 * speed <= joint_angle(sim_bus, 5) <= 0.55 * speed + units.RAD_PER_TICK
+    assert joint_angle(sim_bus, 4) == pytest.approx(0.5 * speed, abs=units.RAD_PER_PULSE)
+    assert 0.5 * speed <= joint_angle(sim_bus, 5) <= 0.55 * speed + units.RAD_PER_PULSE
     for j, joint in enumerate(arm.joints):
         if j != ELBOW:
             for s in joint.servos:
                 assert joint_angle(sim_bus, s.id) == pytest.approx(
-                    arm.rest[j], abs=bus.rest_tolerance + units.RAD_PER_TICK
+                    arm.rest[j], abs=bus.rest_tolerance + units.RAD_PER_PULSE
                 ), s.id
     assert set(torques(sim_bus).values()) == {0}
 
@@ -174,7 +169,7 @@ def torque_timeline(sim_bus: sim.SimBus, start: int) -> list[tuple[int, int, int
         if entry.id == 0xFE:
             continue
         value = None
-        if entry.instruction == Instruction.WRITE and int.from_bytes(entry.params[0:2], "little") == TORQUE_ENABLE:
+        if entry.instruction == Instruction.WRITE and int.from_bytes(entry.params[0:2], "little") == TORQUE:
             value = entry.params[2]
         out.append((k, entry.id, value))
     return out
@@ -232,8 +227,9 @@ def test_reconnect_to_a_holding_arm_keeps_the_shoulder_limp_only_for_its_own_eep
     ],
     ids=["past-180", "below-0", "in-range", "one-turn-over", "wrapped-then-clipped-high", "wrapped-then-clipped-low"],
 )
-def test_hold_tick_wraps_before_clipping(present, expected, lo, hi):
-    assert hold_tick(present, lo, hi) == expected
+def test_hold_pulse_wraps_before_clipping(present, expected, lo, hi):
+    assert hold_pulse(present, lo, hi) == expected
+    assert hold_tick is hold_pulse  # the first release's name
 
 
 @pytest.mark.parametrize(

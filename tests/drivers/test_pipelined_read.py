@@ -14,6 +14,7 @@ from drivers.control_table import Instruction
 from drivers.dynamixel_bus import DynamixelBus
 from drivers.port import open_port
 from retarget.errors import BusError
+from tests.helpers import PRESENT, address
 
 READS = (Instruction.SYNC_READ, Instruction.FAST_SYNC_READ)
 
@@ -106,7 +107,7 @@ def test_close_with_a_read_in_flight_waits_for_its_replies(arm, clock, shutdown,
         if shutdown == "rest":  # reached within the bus's rest tolerance (0.02 rad) before torque went off
             np.testing.assert_allclose(q, arm.rest, atol=0.03)
     finally:
-        sim.unregister(url.removeprefix("sim://@"))
+        sim.unregister(url)
 
 
 def test_a_lost_reply_of_a_pipelined_read_is_retried(bus, sim_bus):
@@ -142,9 +143,9 @@ def link(url):
 @pytest.mark.parametrize(
     ("requests", "fast"),
     [
-        ({1: (132, 4), 2: (132, 4), 4: (132, 4)}, False),
-        ({1: (132, 4), 2: (132, 4), 4: (132, 4)}, True),
-        ({1: (132, 4), 2: (146, 1)}, False),
+        ({1: (PRESENT, 4), 2: (PRESENT, 4), 4: (PRESENT, 4)}, False),
+        ({1: (PRESENT, 4), 2: (PRESENT, 4), 4: (PRESENT, 4)}, True),
+        ({1: (PRESENT, 4), 2: (address("Present Temperature"), 1)}, False),
     ],
     ids=["sync", "fast-sync", "bulk"],
 )
@@ -161,7 +162,7 @@ def test_send_then_receive_equals_one_group_read(link, sim_bus, requests, fast):
 def test_a_read_whose_instruction_did_not_go_out_is_sent_again(link, sim_bus):
     link.port.is_using = True  # another transaction holds the port: the SDK refuses to send (COMM_PORT_BUSY)
     n = len(sim_bus.log)
-    read = link.send_group_read(GroupRead.plan({1: (132, 4), 2: (132, 4)}))
+    read = link.send_group_read(GroupRead.plan({1: (PRESENT, 4), 2: (PRESENT, 4)}))
     assert not read.sent and link.port.is_using  # its lock is left alone
     assert len(sim_bus.log) == n
     link.port.is_using = False  # that transaction ends

@@ -17,11 +17,14 @@ from drivers.comm import Link, comm_result_name, status_error_name
 from drivers.control_table import ALERT_BIT, HardwareError
 from drivers.dynamixel_bus import DynamixelBus
 from drivers.port import UrlPortHandler, open_port
-from drivers.scan import ALL_BAUDS, parse_ids, scan
+from drivers.scan import ALL_BAUDS, scan
 from retarget.cli import main
 from retarget.control.bus import ShutdownMode
-from retarget.errors import BusError, ConfigError
+from retarget.errors import BusError
 from sim.server import TcpServer
+from tests.helpers import GOAL, PRESENT, address
+
+TEMPERATURE = address("Present Temperature")  #: 1 byte
 
 # ---------------------------------------------------------------------------------------------- port
 
@@ -43,8 +46,8 @@ def test_socket_port_has_nagle_off(sim_bus):
             assert port.ser._socket.getsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY) == 1
             link = Link(port, retries=0)
             for _ in range(3):
-                link.sync_write(116, 4, {1: (2048).to_bytes(4, "little")})
-                link.read(1, 132, 4)  # raises when the READ sat behind Nagle's algorithm
+                link.sync_write(GOAL, 4, {1: (2048).to_bytes(4, "little")})
+                link.read(1, PRESENT, 4)  # raises when the READ sat behind Nagle's algorithm
         finally:
             port.closePort()
 
@@ -106,13 +109,13 @@ def test_data_limit_error_is_named(link, sim_bus):
 
 def test_alert_bit_is_collected(link, sim_bus):
     sim_bus.servo(3).trigger_hardware_error(HardwareError.INPUT_VOLTAGE)
-    link.read(3, 132, 4)
+    link.read(3, PRESENT, 4)
     assert link.alerts == {3}
 
 
 def test_bulk_read_when_addresses_differ(link, sim_bus):
     sim_bus.servo(1).set_position(1234)
-    replies = link.group_read({1: (132, 4), 2: (146, 1)}, what="mixed")
+    replies = link.group_read({1: (PRESENT, 4), 2: (TEMPERATURE, 1)}, what="mixed")
     assert int.from_bytes(replies[1].data, "little") == 1234
     assert replies[2].data[0] == sim_bus.servo(2).get("Present Temperature")
 
@@ -121,7 +124,7 @@ def test_bulk_read_when_addresses_differ(link, sim_bus):
 def test_group_read_names_the_silent_servo(link, sim_bus, fast):
     sim_bus.servo(2).unplug()
     with pytest.raises(BusError, match=r"^servo 2: no status packet \(Present Position\)") as info:
-        link.group_read({i: (132, 4) for i in (1, 2, 4)}, fast=fast, what="Present Position")
+        link.group_read({i: (PRESENT, 4) for i in (1, 2, 4)}, fast=fast, what="Present Position")
     assert info.value.ids == (2,)
     assert link.error_count == 1
 
@@ -132,21 +135,6 @@ def test_retries_must_be_non_negative(link):
 
 
 # ---------------------------------------------------------------------------------------------- scan
-
-
-@pytest.mark.parametrize(
-    ("text", "ids"),
-    [("1-3", (1, 2, 3)), ("5", (5,)), ("1,3,5-6", (1, 3, 5, 6)), ("0-252", tuple(range(253)))],
-    ids=["range", "one", "mixed", "all"],
-)
-def test_parse_ids(text, ids):
-    assert parse_ids(text) == ids
-
-
-@pytest.mark.parametrize("text", ["a-b", "5-1", "253", "-"], ids=["letters", "reversed", "too-high", "dash"])
-def test_parse_ids_rejects(text):
-    with pytest.raises(ConfigError, match=r"--ids"):
-        parse_ids(text)
 
 
 def test_all_bauds_start_with_the_common_ones():
@@ -166,7 +154,7 @@ def test_scan_per_id_across_bauds(clock):
     try:
         found = scan(url, (1_000_000, 57_600), (6, 7), broadcast=False)
     finally:
-        sim.unregister("drivers-scan-57600")
+        sim.unregister(url)
     assert [(s.id, s.model, s.model_number, s.baud) for s in found] == [(7, "XL330-M288", 1200, 57_600)]
 
 
@@ -189,7 +177,7 @@ def test_cli_scan_table(url, capsys):
     ("argv", "status", "message"),
     [
         (["--ids", "20-21", "--no-broadcast"], 4, "no servo answered on"),
-        (["--ids", "x"], 2, "--ids: expected IDs like 1-9"),
+        (["--ids", "x"], 2, "--ids: Expected IDs like 1-6 or 1,3,5 (got 'x')"),  # ids -> --ids: retarget.cli.options
     ],
     ids=["nothing-found", "bad-ids"],
 )

@@ -15,7 +15,7 @@ from drivers.dynamixel_bus import DynamixelBus, plan_servos
 from retarget.control.bus import ShutdownMode
 from retarget.control.clock import VirtualClock
 from retarget.errors import BusError
-from tests.helpers import goal_writes
+from tests.helpers import GOAL, goal_writes
 
 
 @pytest.fixture(params=["wx250s", "koch"], ids=["wx250s", "koch"])
@@ -26,17 +26,17 @@ def rig(request: pytest.FixtureRequest):
     simbus = sim.SimBus.from_arm(arm, clock=clock, return_delay_time=0)
     url = sim.attach(simbus)
     yield arm, simbus, url, clock
-    sim.unregister(url.removeprefix("sim://@"))
+    sim.unregister(url)
 
 
-def reference_ticks(bus: DynamixelBus, goal: np.ndarray) -> dict[int, int]:
+def reference_pulses(bus: DynamixelBus, goal: np.ndarray) -> dict[int, int]:
     """Goal Position per joint servo, the vectorized way: encode the joint goal, clip to the servo's limits."""
     out = {}
     for s in plan_servos(bus.arm):
         if s.role == "gripper":
             continue
-        ticks = int(units.rad_to_ticks(goal[s.joint], offset=s.offset))
-        out[s.id] = int(np.clip(ticks, s.min_tick, s.max_tick))
+        pulses = int(units.rad_to_pulses(goal[s.joint], offset=s.offset))
+        out[s.id] = int(np.clip(pulses, s.min_pulse, s.max_pulse))
     return out
 
 
@@ -50,17 +50,17 @@ def test_goals_on_the_wire_match_the_vectorized_encoding_seeded(rig, dt):
         for k in range(200):
             span = bus.upper - bus.lower
             q = rng.uniform(bus.lower - 0.2 * span, bus.upper + 0.2 * span)  # some beyond the limits
-            if k % 4 == 0:  # exactly between two ticks: rounds half to even, as np.rint does
-                q = np.round(q / units.RAD_PER_TICK) * units.RAD_PER_TICK + units.RAD_PER_TICK / 2
+            if k % 4 == 0:  # exactly between two pulses: rounds half to even, as np.rint does
+                q = np.round(q / units.RAD_PER_PULSE) * units.RAD_PER_PULSE + units.RAD_PER_PULSE / 2
             bus.write_goals(q)
             goal = np.clip(q, bus.lower, bus.upper)
             if bus.max_step is not None:
                 goal = last + np.clip(goal - last, -bus.max_step, bus.max_step)
-            assert goal_writes(simbus)[-1] == reference_ticks(bus, goal), k
+            assert goal_writes(simbus)[-1] == reference_pulses(bus, goal), k
             last = goal
 
 
-def test_positions_decode_as_ticks_to_rad_seeded(rig):
+def test_positions_decode_as_pulses_to_rad_seeded(rig):
     arm, simbus, url, clock = rig
     bus = DynamixelBus(arm, url, clock=clock, shutdown=ShutdownMode.OFF, check_latency=False)
     primaries = sorted((s for s in plan_servos(arm) if s.role == "primary"), key=lambda s: s.joint)
@@ -71,7 +71,7 @@ def test_positions_decode_as_ticks_to_rad_seeded(rig):
             clock.advance(0.05)  # part of the way: positions between goals
             q = bus.read_positions()
             present = [simbus.servo(s.id).get("Present Position") for s in primaries]
-            expected = units.ticks_to_rad(np.array(present), offset=[s.offset for s in primaries])
+            expected = units.pulses_to_rad(np.array(present), offset=[s.offset for s in primaries])
             assert q.dtype == np.float64 and q.shape == (arm.n_joints,)
             np.testing.assert_array_equal(q, expected)
 
@@ -83,7 +83,7 @@ def test_a_failed_goal_write_names_every_servo_of_the_packet(rig):
     with bus:
         q = bus.read_positions()
         bus.link.port.is_using = True  # another transaction holds the port: the SDK refuses to send
-        with pytest.raises(BusError, match=r"port busy \(sync write at address 116\)") as info:
+        with pytest.raises(BusError, match=rf"port busy \(sync write at address {GOAL}\)") as info:
             bus.write_goals(q)
         assert info.value.ids == tuple(sorted(ids))
         bus.link.release()

@@ -1,4 +1,4 @@
-"""drivers.units: radians <-> ticks and the speed units, with seeded round trips."""
+"""drivers.units: radians <-> pulses and the speed units, with seeded round trips."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from drivers import units
 
 
 @pytest.mark.parametrize(
-    ("q", "offset", "direction", "ticks"),
+    ("q", "offset", "direction", "pulses"),
     [
         (0.0, 0, 1, 2048),
         (math.pi / 2, 0, 1, 3072),
@@ -23,27 +23,27 @@ from drivers import units
     ],
     ids=["zero", "quarter", "minus-quarter", "reversed", "offset", "wx250s-wrist-min", "wx250s-wrist-max"],
 )
-def test_rad_to_ticks_known_values(q, offset, direction, ticks):
-    assert units.rad_to_ticks(q, offset=offset, direction=direction) == ticks
-    assert units.ticks_to_rad(ticks, offset=offset, direction=direction) == pytest.approx(q, abs=units.RAD_PER_TICK)
+def test_rad_to_pulses_known_values(q, offset, direction, pulses):
+    assert units.rad_to_pulses(q, offset=offset, direction=direction) == pulses
+    assert units.pulses_to_rad(pulses, offset=offset, direction=direction) == pytest.approx(q, abs=units.RAD_PER_PULSE)
 
 
-def test_round_trip_is_within_half_a_tick_seeded():
+def test_round_trip_is_within_half_a_pulse_seeded():
     rng = np.random.default_rng(1234)
     q = rng.uniform(-math.pi, math.pi, size=(200, 6))
     offset = rng.integers(-300, 300, size=6)
     direction = rng.choice([-1, 1], size=6)
-    ticks = units.rad_to_ticks(q, offset=offset, direction=direction)
-    assert ticks.shape == (200, 6) and ticks.dtype == np.int64
-    back = units.ticks_to_rad(ticks, offset=offset, direction=direction)
-    assert np.max(np.abs(back - q)) <= units.RAD_PER_TICK / 2 + 1e-12
-    # and ticks -> rad -> ticks is exact
-    assert np.array_equal(units.rad_to_ticks(back, offset=offset, direction=direction), ticks)
+    pulses = units.rad_to_pulses(q, offset=offset, direction=direction)
+    assert pulses.shape == (200, 6) and pulses.dtype == np.int64
+    back = units.pulses_to_rad(pulses, offset=offset, direction=direction)
+    assert np.max(np.abs(back - q)) <= units.RAD_PER_PULSE / 2 + 1e-12
+    # and pulses -> rad -> pulses is exact
+    assert np.array_equal(units.rad_to_pulses(back, offset=offset, direction=direction), pulses)
 
 
-def test_rad_to_ticks_rejects_non_finite():
+def test_rad_to_pulses_rejects_non_finite():
     with pytest.raises(ValueError, match="Expected finite angles"):
-        units.rad_to_ticks([0.0, math.nan])
+        units.rad_to_pulses([0.0, math.nan])
 
 
 @pytest.mark.parametrize(
@@ -85,3 +85,10 @@ def test_negative_rates_rejected(fn):
 
 def test_seconds_to_ms():
     assert units.seconds_to_ms(0.02) == 20
+
+
+def test_the_first_release_names_are_aliases():
+    """ "Tick" is the control cycle; the encoder count is a pulse.  The old names still work."""
+    assert units.rad_to_ticks is units.rad_to_pulses and units.ticks_to_rad is units.pulses_to_rad
+    assert (units.TICKS_PER_REV, units.CENTER_TICK, units.MIN_TICK, units.MAX_TICK) == (4096, 2048, 0, 4095)
+    assert units.RAD_PER_TICK == units.RAD_PER_PULSE

@@ -39,7 +39,7 @@ def sim_bus(arm):
         clock = VirtualClock()
         simbus = sim.SimBus.from_arm(arm, clock=clock, faults=sim.Faults(wire=True, **faults))
         url = sim.attach(simbus)
-        names.append(url.removeprefix("sim://@"))
+        names.append(url)  # sim.unregister takes the URL
         return simbus, url, clock
 
     names: list[str] = []

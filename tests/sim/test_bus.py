@@ -10,6 +10,9 @@ from retarget.control.clock import VirtualClock
 from retarget.errors import ConfigError
 from sim.faults import Faults, ReplyFaults, wire_time
 from sim.protocol import PacketParser, build_instruction, build_status, decode, parse_fast_read_status
+from tests.helpers import PRESENT, PROFILE_VELOCITY, address
+
+LED = address("LED")
 
 PING, READ, WRITE = Instruction.PING, Instruction.READ, Instruction.WRITE
 
@@ -50,13 +53,13 @@ def test_absent_id_is_silent(bus):
 def test_status_return_level(bus, level, ping, read, write):
     bus.servo(1).set("Status Return Level", level)
     assert bool(bus.handle(build_instruction(1, PING))) is ping
-    assert bool(bus.handle(read_packet(1, 132, 4))) is read
-    assert bool(bus.handle(build_instruction(1, WRITE, u16(65) + b"\x01"))) is write
+    assert bool(bus.handle(read_packet(1, PRESENT, 4))) is read
+    assert bool(bus.handle(build_instruction(1, WRITE, u16(LED) + b"\x01"))) is write
     assert bus.servo(1).get("LED") == 1
 
 
 def test_broadcast_write_and_read_get_no_reply(bus):
-    assert bus.handle(build_instruction(0xFE, WRITE, u16(65) + b"\x01")) == b""
+    assert bus.handle(build_instruction(0xFE, WRITE, u16(LED) + b"\x01")) == b""
     assert all(s.get("LED") == 1 for s in bus.servos)
     assert bus.handle(read_packet(0xFE, 65, 1)) == b""
 
@@ -81,7 +84,7 @@ def test_wrong_parameter_length_is_a_data_length_error(bus):
 
 
 def test_bad_crc_unicast_answers_crc_error_broadcast_is_ignored(bus):
-    bad = bytearray(build_instruction(2, WRITE, u16(65) + b"\x01"))
+    bad = bytearray(build_instruction(2, WRITE, u16(LED) + b"\x01"))
     bad[-1] ^= 0x55
     (status,) = statuses(bus.handle(bytes(bad)))
     assert (status.id, status.params) == (2, bytes((StatusError.CRC,)))
@@ -109,13 +112,13 @@ def test_packet_split_across_writes(bus):
 
 
 def test_sync_read_replies_in_instruction_order(bus):
-    request = build_instruction(0xFE, Instruction.SYNC_READ, u16(132) + u16(4) + bytes((3, 1, 9, 2)))
+    request = build_instruction(0xFE, Instruction.SYNC_READ, u16(PRESENT) + u16(4) + bytes((3, 1, 9, 2)))
     assert [s.id for s in statuses(bus.handle(request))] == [3, 1, 2]
 
 
 def test_fast_sync_read_layout_and_truncation(bus):
     bus.servo(2).set_position(1111)
-    request = build_instruction(0xFE, Instruction.FAST_SYNC_READ, u16(132) + u16(4) + bytes((1, 2, 3)))
+    request = build_instruction(0xFE, Instruction.FAST_SYNC_READ, u16(PRESENT) + u16(4) + bytes((1, 2, 3)))
     reply = bus.handle(request)
     slots = parse_fast_read_status(reply, [4, 4, 4])
     assert [(e, i, int.from_bytes(d, "little")) for e, i, d in slots] == [(0, 1, 2048), (0, 2, 1111), (0, 3, 2048)]
@@ -126,12 +129,16 @@ def test_fast_sync_read_layout_and_truncation(bus):
 
 def test_sync_and_bulk_write(bus):
     sync = build_instruction(
-        0xFE, Instruction.SYNC_WRITE, u16(112) + u16(4) + b"\x01" + u16(7) + u16(0) + b"\x03" + u16(9) + u16(0)
+        0xFE,
+        Instruction.SYNC_WRITE,
+        u16(PROFILE_VELOCITY) + u16(4) + b"\x01" + u16(7) + u16(0) + b"\x03" + u16(9) + u16(0),
     )
     assert bus.handle(sync) == b""
     assert (bus.servo(1).get("Profile Velocity"), bus.servo(3).get("Profile Velocity")) == (7, 9)
     bulk = build_instruction(
-        0xFE, Instruction.BULK_WRITE, b"\x02" + u16(65) + u16(1) + b"\x01" + b"\x03" + u16(9) + u16(1) + b"\x05"
+        0xFE,
+        Instruction.BULK_WRITE,
+        b"\x02" + u16(LED) + u16(1) + b"\x01" + b"\x03" + u16(address("Return Delay Time")) + u16(1) + b"\x05",
     )
     assert bus.handle(bulk) == b""
     assert (bus.servo(2).get("LED"), bus.servo(3).get("Return Delay Time")) == (1, 5)
@@ -146,7 +153,7 @@ def test_broadcast_factory_reset_all_is_not_executed(bus):
 
 
 def test_a_new_id_takes_effect_at_once(bus):
-    bus.handle(build_instruction(3, WRITE, u16(7) + b"\x0a"))
+    bus.handle(build_instruction(3, WRITE, u16(address("ID")) + b"\x0a"))
     assert bus.ids == (1, 2, 10)
     assert statuses(bus.handle(build_instruction(10, PING)))[0].id == 10
 
@@ -162,7 +169,7 @@ def test_wire_model_times_a_sync_read_at_1mbps():
     clock = VirtualClock()
     faults = Faults(wire=True)
     bus = sim.SimBus.from_ids(range(1, 7), "XM430-W350", clock=clock, return_delay_time=10, faults=faults)
-    request = build_instruction(0xFE, Instruction.SYNC_READ, u16(132) + u16(4) + bytes(range(1, 7)))
+    request = build_instruction(0xFE, Instruction.SYNC_READ, u16(PRESENT) + u16(4) + bytes(range(1, 7)))
     replies = bus.feed(request)
     assert len(request) == 20 and all(len(r.data) == 15 for r in replies)
     # request, then each reply after its 20 us return delay, 10 us per byte
@@ -232,7 +239,7 @@ def test_constructor_errors():
 def test_wire_is_half_duplex_a_write_delays_the_next_request():
     clock = VirtualClock()
     bus = sim.SimBus.from_ids([1, 2], "XM430-W350", clock=clock, return_delay_time=0, faults=Faults(wire=True))
-    sync_write = build_instruction(0xFE, Instruction.SYNC_WRITE, u16(65) + u16(1) + b"\x01\x01\x02\x01")
+    sync_write = build_instruction(0xFE, Instruction.SYNC_WRITE, u16(LED) + u16(1) + b"\x01\x01\x02\x01")
     assert bus.feed(sync_write) == []
     (reply,) = bus.feed(build_instruction(1, PING))  # written at the same instant, sent after the sync write
     assert reply.due == pytest.approx(wire_time(len(sync_write) + 10 + 14, 1_000_000))
@@ -241,7 +248,7 @@ def test_wire_is_half_duplex_a_write_delays_the_next_request():
 @pytest.mark.parametrize(
     "request_packet",
     [
-        pytest.param(build_instruction(3, WRITE, u16(7) + b"\x0b"), id="write-id"),
+        pytest.param(build_instruction(3, WRITE, u16(address("ID")) + b"\x0b"), id="write-id"),
         pytest.param(build_instruction(3, Instruction.FACTORY_RESET, b"\xff"), id="factory-reset-all"),
     ],
 )

@@ -20,9 +20,22 @@ from drivers.control_table import ALERT_BIT, HardwareError, StatusError
 from retarget.control.clock import VirtualClock
 from sim.faults import Faults, ReplyFaults
 from sim.servo import PULSES_PER_S2_PER_ACCEL_UNIT, PULSES_PER_S_PER_VELOCITY_UNIT
-from tests.helpers import TRANSPORTS, close_rig, open_rig
+from tests.helpers import (
+    GOAL,
+    PRESENT,
+    PROFILE_ACCELERATION,
+    PROFILE_VELOCITY,
+    TORQUE,
+    TRANSPORTS,
+    address,
+    close_rig,
+    open_rig,
+)
 
-GOAL, PRESENT, TORQUE = 116, 132, 64
+LED = address("LED")
+HARDWARE_ERROR_STATUS = address("Hardware Error Status")
+RETURN_DELAY_TIME = address("Return Delay Time")
+STATUS_RETURN_LEVEL = address("Status Return Level")
 
 
 def le32(value: int) -> list[int]:
@@ -53,14 +66,14 @@ def test_ping_of_each_model(transport):
 
 
 def test_eeprom_write_with_torque_on_is_an_access_error(rig):
-    assert rig.ph.write1ByteTxRx(rig.port, 1, 11, 4) == (COMM_SUCCESS, 0)  # torque off: allowed
+    assert rig.ph.write1ByteTxRx(rig.port, 1, address("Operating Mode"), 4) == (COMM_SUCCESS, 0)  # torque off: allowed
     assert rig.ph.write1ByteTxRx(rig.port, 1, TORQUE, 1) == (COMM_SUCCESS, 0)
-    assert rig.ph.write1ByteTxRx(rig.port, 1, 11, 3) == (COMM_SUCCESS, StatusError.ACCESS)
+    assert rig.ph.write1ByteTxRx(rig.port, 1, address("Operating Mode"), 3) == (COMM_SUCCESS, StatusError.ACCESS)
     assert rig.bus.servo(1).get("Operating Mode") == 4
 
 
 def test_goal_outside_position_limits_is_a_data_limit_error(rig):
-    assert rig.ph.write4ByteTxRx(rig.port, 2, 48, 3000) == (COMM_SUCCESS, 0)  # Max Position Limit
+    assert rig.ph.write4ByteTxRx(rig.port, 2, address("Max Position Limit"), 3000) == (COMM_SUCCESS, 0)
     assert rig.ph.write4ByteTxRx(rig.port, 2, GOAL, 3001) == (COMM_SUCCESS, StatusError.DATA_LIMIT)
     assert rig.ph.write4ByteTxRx(rig.port, 2, GOAL, 3000) == (COMM_SUCCESS, 0)
 
@@ -71,8 +84,8 @@ def test_goal_outside_position_limits_is_a_data_limit_error(rig):
 )
 def test_goal_reached_at_the_expected_speed(rig, profile_velocity, profile_accel):
     ph, port, clock = rig.ph, rig.port, rig.clock
-    assert ph.write4ByteTxRx(port, 1, 112, profile_velocity) == (COMM_SUCCESS, 0)
-    assert ph.write4ByteTxRx(port, 1, 108, profile_accel) == (COMM_SUCCESS, 0)
+    assert ph.write4ByteTxRx(port, 1, PROFILE_VELOCITY, profile_velocity) == (COMM_SUCCESS, 0)
+    assert ph.write4ByteTxRx(port, 1, PROFILE_ACCELERATION, profile_accel) == (COMM_SUCCESS, 0)
     assert ph.write1ByteTxRx(port, 1, TORQUE, 1) == (COMM_SUCCESS, 0)
     start = ph.read4ByteTxRx(port, 1, PRESENT)[0]
     distance = 1500
@@ -85,15 +98,15 @@ def test_goal_reached_at_the_expected_speed(rig, profile_velocity, profile_accel
     clock.sleep_until(t0 + 0.5 * expected)
     position = ph.read4ByteTxRx(port, 1, PRESENT)[0]
     assert start < position < start + distance
-    assert ph.read1ByteTxRx(port, 1, 122)[0] == 1  # Moving
-    velocity = signed32(ph.read4ByteTxRx(port, 1, 128)[0])
+    assert ph.read1ByteTxRx(port, 1, address("Moving"))[0] == 1
+    velocity = signed32(ph.read4ByteTxRx(port, 1, address("Present Velocity"))[0])
     assert velocity == pytest.approx(vmax / PULSES_PER_S_PER_VELOCITY_UNIT, abs=1)
 
     clock.sleep_until(t0 + 0.98 * expected)
     assert ph.read4ByteTxRx(port, 1, PRESENT)[0] < start + distance
     clock.sleep_until(t0 + 1.02 * expected)
     assert ph.read4ByteTxRx(port, 1, PRESENT)[0] == start + distance
-    assert ph.read1ByteTxRx(port, 1, 122)[0] == 0
+    assert ph.read1ByteTxRx(port, 1, address("Moving"))[0] == 0
 
 
 def test_torque_off_nothing_moves(rig):
@@ -107,13 +120,13 @@ def test_reboot_clears_a_hardware_error(rig):
     ph, port = rig.ph, rig.port
     assert ph.write1ByteTxRx(port, 4, TORQUE, 1) == (COMM_SUCCESS, 0)
     rig.bus.servo(4).trigger_hardware_error(HardwareError.OVERLOAD)
-    value, result, error = ph.read1ByteTxRx(port, 4, 70)
+    value, result, error = ph.read1ByteTxRx(port, 4, HARDWARE_ERROR_STATUS)
     assert (value, result, error) == (HardwareError.OVERLOAD, COMM_SUCCESS, ALERT_BIT)
     assert ph.read1ByteTxRx(port, 4, TORQUE)[0] == 0  # overload is in the default Shutdown mask (52)
     assert ph.write1ByteTxRx(port, 4, TORQUE, 1) == (COMM_SUCCESS, ALERT_BIT)
     assert ph.read1ByteTxRx(port, 4, TORQUE)[0] == 0  # stays off until reboot
     assert ph.reboot(port, 4) == (COMM_SUCCESS, ALERT_BIT)  # the reply leaves before the reboot
-    assert ph.read1ByteTxRx(port, 4, 70) == (0, COMM_SUCCESS, 0)
+    assert ph.read1ByteTxRx(port, 4, HARDWARE_ERROR_STATUS) == (0, COMM_SUCCESS, 0)
     assert ph.write1ByteTxRx(port, 4, TORQUE, 1) == (COMM_SUCCESS, 0)
     assert ph.read1ByteTxRx(port, 4, TORQUE)[0] == 1
 
@@ -129,10 +142,14 @@ def test_byte_stuffing_of_a_value_containing_ff_ff_fd(rig):
     # Present Position = actual (2048) + Homing Offset; aim for bytes FF FF FD FF (-131073)
     wanted = -131073
     assert le32(wanted) == [0xFF, 0xFF, 0xFD, 0xFF]
-    assert ph.write4ByteTxRx(port, 2, 20, (wanted - 2048) & 0xFFFFFFFF) == (COMM_SUCCESS, 0)
+    assert ph.write4ByteTxRx(port, 2, address("Homing Offset"), (wanted - 2048) & 0xFFFFFFFF) == (COMM_SUCCESS, 0)
     value, result, error = ph.read4ByteTxRx(port, 2, PRESENT)
     assert (signed32(value), result, error) == (wanted, COMM_SUCCESS, 0)
-    stuffed = [e for e in rig.bus.log if e.instruction == 0x03 and e.params[:2] == bytes((20, 0))]
+    stuffed = [
+        e
+        for e in rig.bus.log
+        if e.instruction == 0x03 and e.params[:2] == address("Homing Offset").to_bytes(2, "little")
+    ]
     assert stuffed and stuffed[-1].params[2:] == bytes(le32(wanted - 2048))
 
 
@@ -167,47 +184,47 @@ def test_bulk_read_and_fast_bulk_read(rig):
     ph, port = rig.ph, rig.port
     bulk = GroupBulkRead(port, ph)
     assert bulk.addParam(1, PRESENT, 4)
-    assert bulk.addParam(2, 144, 3)  # Present Input Voltage + Temperature
+    assert bulk.addParam(2, address("Present Input Voltage"), 3)  # + Present Temperature
     for method in (bulk.txRxPacket, bulk.fastBulkRead):
         assert method() == COMM_SUCCESS
         assert bulk.getData(1, PRESENT, 4) == 2048
-        assert bulk.getData(2, 144, 2) == 120  # 12.0 V
-        assert 20 <= bulk.getData(2, 146, 1) <= 50
+        assert bulk.getData(2, address("Present Input Voltage"), 2) == 120  # 12.0 V
+        assert 20 <= bulk.getData(2, address("Present Temperature"), 1) <= 50
 
 
 def test_bulk_write(rig):
     ph, port = rig.ph, rig.port
     write = GroupBulkWrite(port, ph)
-    assert write.addParam(1, 65, 1, [1])  # LED
-    assert write.addParam(2, 112, 4, le32(321))  # Profile Velocity
+    assert write.addParam(1, LED, 1, [1])
+    assert write.addParam(2, PROFILE_VELOCITY, 4, le32(321))
     assert write.txPacket() == COMM_SUCCESS
-    assert ph.read1ByteTxRx(port, 1, 65)[0] == 1
-    assert ph.read4ByteTxRx(port, 2, 112)[0] == 321
+    assert ph.read1ByteTxRx(port, 1, LED)[0] == 1
+    assert ph.read4ByteTxRx(port, 2, PROFILE_VELOCITY)[0] == 321
 
 
 def test_reg_write_waits_for_action(rig):
     ph, port = rig.ph, rig.port
-    assert ph.regWriteTxRx(port, 1, 65, 1, [1]) == (COMM_SUCCESS, 0)
-    assert ph.read1ByteTxRx(port, 1, 69)[0] == 1  # Registered Instruction
-    assert ph.read1ByteTxRx(port, 1, 65)[0] == 0
+    assert ph.regWriteTxRx(port, 1, LED, 1, [1]) == (COMM_SUCCESS, 0)
+    assert ph.read1ByteTxRx(port, 1, address("Registered Instruction"))[0] == 1
+    assert ph.read1ByteTxRx(port, 1, LED)[0] == 0
     assert ph.action(port, 0xFE) == COMM_SUCCESS  # broadcast ACTION: no reply
-    assert ph.read1ByteTxRx(port, 1, 65)[0] == 1
-    assert ph.read1ByteTxRx(port, 1, 69)[0] == 0
+    assert ph.read1ByteTxRx(port, 1, LED)[0] == 1
+    assert ph.read1ByteTxRx(port, 1, address("Registered Instruction"))[0] == 0
 
 
 def test_factory_reset_keeps_the_id(rig):
     ph, port = rig.ph, rig.port
-    assert ph.write1ByteTxRx(port, 2, 9, 7) == (COMM_SUCCESS, 0)  # Return Delay Time
+    assert ph.write1ByteTxRx(port, 2, RETURN_DELAY_TIME, 7) == (COMM_SUCCESS, 0)
     assert ph.factoryReset(port, 2, 0x02) == (COMM_SUCCESS, 0)  # all but ID and baud
-    assert ph.read1ByteTxRx(port, 2, 9)[0] == 250
+    assert ph.read1ByteTxRx(port, 2, RETURN_DELAY_TIME)[0] == 250
 
 
 def test_status_return_level_1_answers_reads_only(rig):
     ph, port = rig.ph, rig.port
-    ph.write1ByteTxOnly(port, 6, 68, 1)  # the new level applies to this write's own status already
-    assert ph.read1ByteTxRx(port, 6, 68) == (1, COMM_SUCCESS, 0)
-    ph.write1ByteTxOnly(port, 6, 65, 1)  # no status expected at level 1
-    assert ph.read1ByteTxRx(port, 6, 65)[0] == 1
+    ph.write1ByteTxOnly(port, 6, STATUS_RETURN_LEVEL, 1)  # the new level applies to this write's own status already
+    assert ph.read1ByteTxRx(port, 6, STATUS_RETURN_LEVEL) == (1, COMM_SUCCESS, 0)
+    ph.write1ByteTxOnly(port, 6, LED, 1)  # no status expected at level 1
+    assert ph.read1ByteTxRx(port, 6, LED)[0] == 1
 
 
 def test_broadcast_ping_answers_in_id_order():

@@ -7,6 +7,7 @@ import serial
 from serial.serialutil import PortNotOpenError, SerialException
 
 import sim
+from drivers import control_table
 from retarget.control.clock import MonotonicClock, VirtualClock
 from retarget.errors import ConfigError
 from sim.faults import Faults
@@ -51,7 +52,8 @@ def test_url_options():
         pytest.param("sim://?ids=1-x", ConfigError, "IDs like", id="bad-ids"),
         pytest.param("sim://?ids=3,3", ConfigError, "distinct", id="duplicate-ids"),
         pytest.param("sim://?ids=1&clock=fast", ConfigError, "clock=real", id="clock"),
-        pytest.param("sim://?ids=1&baud=fast", ConfigError, "numbers for baud", id="baud"),
+        pytest.param("sim://?ids=1&baud=fast", ConfigError, "baud: Expected an integer", id="baud"),
+        pytest.param("sim://?ids=1&boot_ms=x", ConfigError, "boot_ms: Expected a number of milliseconds", id="boot"),
         pytest.param("sim://wx250s?ids=1", ConfigError, "not both", id="arm-and-ids"),
         pytest.param("sim://@nobody", KeyError, "no SimBus registered as 'nobody'", id="unregistered"),
         pytest.param("sim://?ids=1&drop=2", ConfigError, r"fraction in \[0, 1\]", id="drop-range"),
@@ -62,8 +64,9 @@ def test_url_errors(url, error, match):
         bus_from_url(url)
 
 
-def test_parse_ids():
-    assert parse_ids("1-3, 8") == [1, 2, 3, 8]
+def test_parse_ids_is_the_control_tables():
+    assert parse_ids is control_table.parse_ids  # one parser for sim://?ids= and ``retarget scan --ids``
+    assert parse_ids("1-3, 8") == (1, 2, 3, 8)
     with pytest.raises(ConfigError, match="0..252"):
         parse_ids("250-253")
 
@@ -78,8 +81,15 @@ def test_registered_bus_by_url():
         with pytest.raises(ConfigError, match="options cannot be given"):
             bus_from_url(url + "?drop=0.1")
         port.close()
+        assert sim.registered(url) is sim.registered(url.removeprefix("sim://@")) is bus
     finally:
-        sim.unregister(url.removeprefix("sim://@"))
+        sim.unregister(url)  # the URL attach returned
+    with pytest.raises(KeyError, match="no SimBus registered"):
+        sim.registered(url)
+    sim.register("test-by-name", bus)
+    sim.unregister("test-by-name")  # or the name
+    with pytest.raises(KeyError, match="no SimBus registered as 'test-by-name'"):
+        sim.registered("sim://@test-by-name")
     with pytest.raises(ValueError, match="without '/'"):
         sim.register("a/b", bus)
 

@@ -12,6 +12,7 @@ import sim
 from drivers.control_table import Instruction
 from sim.faults import Faults, wire_time
 from sim.protocol import build_instruction
+from tests.helpers import GOAL, PRESENT
 
 BAUD = 1_000_000
 STEP = 1e-3  #: how far the clock moves on every read: far more than any wire time here
@@ -37,7 +38,7 @@ def u16(v: int) -> bytes:
 
 def sync_write_goal(ids: range) -> bytes:
     return build_instruction(
-        0xFE, Instruction.SYNC_WRITE, u16(116) + u16(4) + b"".join(bytes([i]) + u16(2048) + u16(0) for i in ids)
+        0xFE, Instruction.SYNC_WRITE, u16(GOAL) + u16(4) + b"".join(bytes([i]) + u16(2048) + u16(0) for i in ids)
     )
 
 
@@ -52,7 +53,7 @@ def test_reply_times_count_from_the_write_instant_only(instruction, reply_length
     clock = SteppingClock()
     ids = range(1, 7)
     bus = sim.SimBus.from_ids(ids, "XM430-W350", clock=clock, return_delay_time=0, faults=Faults(wire=True))
-    request = build_instruction(0xFE, instruction, u16(132) + u16(4) + bytes(ids))
+    request = build_instruction(0xFE, instruction, u16(PRESENT) + u16(4) + bytes(ids))
     written = clock.t + STEP  # the first clock read inside feed: the instant the request is written
     replies = bus.feed(request)
     assert clock.t > written  # the simulator did read the clock again while it processed the request
@@ -68,7 +69,7 @@ def test_a_request_written_while_the_line_is_busy_waits_behind_it():
     ids = range(1, 7)
     bus = sim.SimBus.from_ids(ids, "XM430-W350", clock=clock, return_delay_time=0, faults=Faults(wire=True))
     goal = sync_write_goal(ids)
-    read = build_instruction(0xFE, Instruction.FAST_SYNC_READ, u16(132) + u16(4) + bytes(ids))
+    read = build_instruction(0xFE, Instruction.FAST_SYNC_READ, u16(PRESENT) + u16(4) + bytes(ids))
     t_write = clock.t + STEP
     assert bus.feed(goal, now=t_write) == []
     # written 100 us later, while the 440 us sync write is still on the line: it goes out after it
@@ -81,7 +82,7 @@ def test_a_request_written_while_the_line_is_busy_waits_behind_it():
 def test_the_port_hands_a_reply_over_at_its_due_time_not_before():
     port = serial.serial_for_url("sim://?ids=1-6&model=XM430-W350&rdt=0&wire=1&clock=virtual", baudrate=BAUD, timeout=0)
     clock = port.bus.clock
-    read = build_instruction(0xFE, Instruction.FAST_SYNC_READ, u16(132) + u16(4) + bytes(range(1, 7)))
+    read = build_instruction(0xFE, Instruction.FAST_SYNC_READ, u16(PRESENT) + u16(4) + bytes(range(1, 7)))
     port.write(read)
     due = wire_time(len(read) + 8 + 6 * 8, BAUD)
     clock.advance(due - 1e-6)  # the last byte is still on the wire
@@ -102,7 +103,7 @@ def test_the_port_hands_a_reply_over_at_its_due_time_not_before():
 def test_a_host_write_during_a_reply_is_a_collision(after, collides):
     ids = range(1, 7)
     bus = sim.SimBus.from_ids(ids, "XM430-W350", clock=SteppingClock(), return_delay_time=0, faults=Faults(wire=True))
-    read = build_instruction(0xFE, Instruction.FAST_SYNC_READ, u16(132) + u16(4) + bytes(ids))
+    read = build_instruction(0xFE, Instruction.FAST_SYNC_READ, u16(PRESENT) + u16(4) + bytes(ids))
     goal = sync_write_goal(ids)
     (reply,) = bus.feed(read, now=0.0)
     assert bus.feed(goal, now=reply.due + after) == []
@@ -116,7 +117,7 @@ def test_a_host_write_during_a_reply_is_a_collision(after, collides):
 def test_without_the_wire_model_nothing_is_timed_so_nothing_collides():
     ids = range(1, 7)
     bus = sim.SimBus.from_ids(ids, "XM430-W350", clock=SteppingClock(), return_delay_time=0)
-    read = build_instruction(0xFE, Instruction.FAST_SYNC_READ, u16(132) + u16(4) + bytes(ids))
+    read = build_instruction(0xFE, Instruction.FAST_SYNC_READ, u16(PRESENT) + u16(4) + bytes(ids))
     bus.feed(read, now=0.0)
     bus.feed(read, now=0.0)
     assert bus.collisions == []
