@@ -32,6 +32,8 @@ from pathlib import Path
 import numpy as np
 
 import retarget
+import sim
+from drivers import DynamixelBus
 from retarget.control import ControlLoop, LoopConfig, TickRecord
 from retarget.control.clock import MonotonicClock, VirtualClock
 from retarget.mapping import retarget_targets
@@ -88,9 +90,6 @@ def offline(clip: Path, repeat: int) -> None:
 
 
 def on_bus(clip: Path, ticks: int) -> None:
-    import sim
-    from drivers import DynamixelBus
-
     arm = retarget.load_arm("koch")
     motion = retarget.load_bvh(clip)
     targets = retarget_targets(motion, arm)
@@ -122,7 +121,7 @@ def on_bus(clip: Path, ticks: int) -> None:
             finally:
                 bus.close()
         finally:
-            sim.unregister(url.removeprefix("sim://@"))
+            sim.unregister(url)
         computes.append(summary.compute_ms_p50 / 1e3)
         return (c1 - c0), np.diff(stamps), np.asarray(bus_s), summary.ticks
 

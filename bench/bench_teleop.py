@@ -14,6 +14,7 @@ Times are ``time.perf_counter``; each case is warmed up once, medians over ``--r
 from __future__ import annotations
 
 import argparse
+import logging
 import random
 import statistics
 import time
@@ -53,8 +54,6 @@ def garbage(n: int) -> list[bytes]:
 
 
 def gate_rate(messages: list[bytes], repeat: int) -> float:
-    import logging
-
     logging.getLogger("retarget.teleop.gate").setLevel(logging.ERROR)  # measure parsing, not logging
     arm = retarget.load_arm("wx250s")
     rates = []

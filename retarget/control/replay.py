@@ -1,8 +1,10 @@
 """Clip replay: :class:`ControlLoop` plays retargeted motion on a bus (or dry) at a fixed rate.
 
-It runs the tick loop of :mod:`retarget.control.loop` (target, IK, velocity limit, one write, read-back; the
-read-back pipelined with the next tick's compute on a bus) on a :class:`ClipSource`.  Tick ``k`` plays clip
-time ``start + k * speed / rate``, wrapped into ``[start, end)`` with ``loop``; the clip's frames are
+It runs the tick loop of :mod:`retarget.control.loop` (target, IK, step limit, one write, read-back; the
+read-back pipelined with the next tick's compute on a bus) on a :class:`ClipSource`, the
+:class:`~retarget.control.source.TargetSource` that answers each clip slot with a
+:class:`~retarget.control.source.TickTarget` and each lead-in slot with a :class:`JointGoal`.  Tick ``k`` plays
+clip time ``start + k * speed / rate``, wrapped into ``[start, end)`` with ``loop``; the clip's frames are
 resampled to ticks by linear interpolation and pulled into the workspace, a block of slots at a time.
 
 **Lead-in.**  On a bus, :meth:`ControlLoop.run` first moves the arm from its
@@ -16,7 +18,7 @@ the plan and catches up as it slows down, never faster.  Its ticks are slots ``-
 same tick loop, before the clip's clock starts (their ``time`` is negative,
 ``TickRecord.lead_in`` is set, ``clip_time`` is the clip's start), so the clip
 still starts at slot 0 with the same bus calls, limits and velocity limiting.
-Its ticks are counted apart: the summary's ticks, IK stats, tick times,
+Its ticks are counted apart (:mod:`~retarget.control.stats`): the summary's ticks, IK stats, tick times,
 overruns and real-time factor are the clip's; ``lead_in_ticks`` and
 ``lead_in_s`` report the lead-in; ``max_ticks`` counts clip ticks.  A dry run
 has no lead-in (no arm to move): start it from ``initial_pose()`` to get the
@@ -39,21 +41,20 @@ import math
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
-from retarget.control.bus import connected
+from retarget.arm.model import Arm
+from retarget.control.bus import Bus, connected
 from retarget.control.clock import Clock, MonotonicClock
-from retarget.control.loop import JointGoal, LoopConfig, TargetSource, TickRecord, TickStats, run_ticks
+from retarget.control.loop import LoopConfig, TickRecord, run_ticks
+from retarget.control.source import JointGoal, TargetSource, TickGoal, TickSolver, TickTarget
+from retarget.control.stats import TickStats
 from retarget.control.summary import RunSummary
 from retarget.errors import ConfigError
-
-if TYPE_CHECKING:
-    from retarget.arm.model import Arm
-    from retarget.control.bus import Bus
-    from retarget.ik.ccd import CCDSolver
-    from retarget.mapping.geometry import Targets
+from retarget.ik.ccd import CCDSolver
+from retarget.mapping.geometry import Targets, ik_weights
 
 __all__ = [
     "ClipSource",
@@ -64,6 +65,7 @@ __all__ = [
     "TargetSource",
     "TickRecord",
     "TickStats",
+    "TickTarget",
     "run_on_bus",
     "run_ticks",
 ]
@@ -74,16 +76,32 @@ _BLOCK = 256  #: targets are resampled this many slots at a time
 
 
 class ControlLoop:
-    """Plays :class:`~retarget.mapping.Targets` on an arm at a fixed rate.  See the module docstring.
+    """Plays :class:`~retarget.mapping.Targets` on ``arm`` at a fixed rate.  See the module docstring.
 
-    ``solver`` defaults to a :class:`~retarget.ik.CCDSolver` with the config's
-    budget (and the mapping's orientation weight when the targets carry
-    rotations).  ``on_tick(record)`` is called after every tick;
-    ``on_progress(record)`` on the first tick, then about once per
-    ``progress_every`` real seconds (so ``--fast`` runs do not flood the terminal), as read from
+    ``targets``: the clip's tool targets (``(n_frames, 3)`` metres, base frame, and optional rotations);
+    ``config``: rate, window, speed and limits (default :class:`LoopConfig`); ``clock``: the loop's clock
+    (default real time, :class:`~retarget.control.clock.MonotonicClock`).  ``solver`` defaults to a
+    :class:`~retarget.ik.CCDSolver` with the config's budget and tolerance, the mapping's per-joint weights
+    (and its orientation weight when the targets carry rotations).  ``on_tick(record)`` is called after
+    every tick with its :class:`TickRecord`; ``on_progress(record)`` on the first tick, then about once per
+    ``config.progress_every`` real seconds (so ``--fast`` runs do not flood the terminal), as read from
     ``progress_time()`` (default ``time.perf_counter``; a test passes a fake one to check the pacing).
-    ``pipeline``: overlap each tick's read-back with the next tick's compute on a bus (see the module
-    docstring); False reads back within the tick.
+    ``clip_name`` labels the summary.  ``pipeline``: overlap each tick's read-back with the next tick's
+    compute on a bus (see :mod:`~retarget.control.readback`); False reads back within the tick.
+    :meth:`run` plays it and returns the :class:`~retarget.control.summary.RunSummary`.
+
+    A dry run (no bus) of a 2 s circle at 100 Hz, on a virtual clock so it takes no real time:
+
+    >>> import retarget
+    >>> from retarget.control.clock import VirtualClock
+    >>> from retarget.mapping import Targets, Workspace
+    >>> arm = retarget.load_arm("wx250s")
+    >>> t = np.linspace(0.0, 2.0, 21)  # 21 frames at 10 fps
+    >>> circle = np.stack([0.35 + 0 * t, 0.08 * np.sin(np.pi * t), 0.25 + 0.08 * np.cos(np.pi * t)], axis=-1)
+    >>> targets = Targets.from_raw(circle, frame_time=0.1, workspace=Workspace.for_arm(arm))
+    >>> summary = ControlLoop(arm, targets, clock=VirtualClock()).run(None)
+    >>> summary.ticks, summary.run_time_s, summary.ik_converged_pct > 90
+    (201, 2.01, True)
     """
 
     def __init__(
@@ -93,7 +111,7 @@ class ControlLoop:
         *,
         config: LoopConfig | None = None,
         clock: Clock | None = None,
-        solver: CCDSolver | None = None,
+        solver: TickSolver | None = None,
         on_tick: Callable[[TickRecord], None] | None = None,
         on_progress: Callable[[TickRecord], None] | None = None,
         clip_name: str = "",
@@ -105,15 +123,8 @@ class ControlLoop:
         self.targets = targets
         self.config = config = config or LoopConfig()
         self.clock: Clock = clock if clock is not None else MonotonicClock()
-        from retarget.ik.ccd import CCDSolver
-        from retarget.mapping.geometry import ik_weights
-
-        self._solver_kwargs = {"tolerance": config.ik_tolerance, "weights": ik_weights(arm, targets.config)}
-        if targets.rotations is not None:
-            self._solver_kwargs["orientation_weight"] = targets.config.orientation_weight
-        if solver is None:
-            solver = CCDSolver(arm, max_iterations=config.ik_iterations, **self._solver_kwargs)
-        self.solver = solver
+        self._weights = ik_weights(arm, targets.config)
+        self.solver: TickSolver = solver if solver is not None else self._ik(config.ik_iterations)
         self.on_tick = on_tick
         self.on_progress = on_progress
         self.progress_time = progress_time
@@ -124,7 +135,7 @@ class ControlLoop:
         end = clip_duration if config.end is None else min(config.end, clip_duration)
         if config.start >= end and targets.n_frames > 1:
             raise ConfigError(
-                f"Expected a start time before the clip's end ({end:g} s)", key="--start", value=config.start
+                f"Expected a start time before the clip's end ({end:g} s)", key="start", value=config.start
             )
         self.window = (float(config.start), float(end))
         self.step = step = config.speed / config.rate  #: clip seconds per tick
@@ -137,12 +148,28 @@ class ControlLoop:
         self.n_slots = n
         self.frames = int(round(span / targets.frame_time)) + 1
 
+    def _ik(self, max_iterations: int) -> CCDSolver:
+        """A CCD solver for these targets with a budget of ``max_iterations`` sweeps per solve."""
+        arm, tolerance, mapping = self.arm, self.config.ik_tolerance, self.targets.config
+        if self.targets.rotations is None:
+            return CCDSolver(arm, max_iterations=max_iterations, tolerance=tolerance, weights=self._weights)
+        return CCDSolver(
+            arm,
+            max_iterations=max_iterations,
+            tolerance=tolerance,
+            weights=self._weights,
+            orientation_weight=mapping.orientation_weight,
+        )
+
     def clip_time(self, i: int) -> float:
         """Clip seconds of slot ``i`` of a pass (``0 <= i < n_slots``)."""
         return self.config.start + i * self.step
 
-    def sample(self, first: int, stop: int) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
-        """Targets of slots ``first..stop-1`` of a pass: positions ``(n, 3)`` m, rotations or None, clamped ``(n,)``."""
+    def sample(
+        self, first: int, stop: int
+    ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64] | None, npt.NDArray[np.bool_]]:
+        """Targets of slots ``first..stop-1`` of a pass: positions ``(n, 3)`` m, rotations ``(n, 3, 3)`` or None,
+        clamped ``(n,)``."""
         return self.targets.sample(self.config.start + np.arange(first, stop) * self.step)
 
     @property
@@ -157,21 +184,19 @@ class ControlLoop:
         """Ask the run to end at the next tick boundary (safe from a signal handler or another thread)."""
         self._stop.set()
 
-    def initial_pose(self, *, iterations: int = 200) -> np.ndarray:
+    def initial_pose(self, *, iterations: int = 200) -> npt.NDArray[np.float64]:
         """The IK solution of the first target, solved cold from home with a large budget: ``(n_joints,)`` rad."""
-        from retarget.ik.ccd import CCDSolver
-
-        solver = CCDSolver(self.arm, max_iterations=iterations, **self._solver_kwargs)
+        solver = self._ik(iterations)
         positions, rotations, _ = self.sample(0, 1)
         rotation = None if rotations is None else rotations[0]
         return np.array(solver.solve(positions[0], self.arm.home, rotation).q, dtype=np.float64)
 
     def run(
-        self, bus: Bus | None = None, *, q_start: np.ndarray | None = None, lead_in: bool | None = None
+        self, bus: Bus | None = None, *, q_start: npt.NDArray[np.float64] | None = None, lead_in: bool | None = None
     ) -> RunSummary:
         """Run the loop on a connected ``bus`` (``None``: dry run) and return the summary.
 
-        The start pose is the bus's present positions, else ``q_start``, else the
+        The start pose ``(n_joints,)`` rad is the bus's present positions, else ``q_start``, else the
         arm's rest pose.  ``lead_in``: first move from the start pose to
         :meth:`initial_pose` (see the module docstring; nothing when
         ``config.lead_in_speed`` is 0); default on a bus only, True previews it in
@@ -209,9 +234,11 @@ class LeadIn:
     ``speed_j / rate``.  No slots when a single step is already within that speed.
     """
 
-    q_from: np.ndarray
-    q_to: np.ndarray
-    target: np.ndarray  #: ``(3,)`` metres: the target whose solution ``q_to`` is, reported by the lead-in ticks
+    q_from: npt.NDArray[np.float64]
+    q_to: npt.NDArray[np.float64]
+    target: npt.NDArray[
+        np.float64
+    ]  #: ``(3,)`` metres: the target whose solution ``q_to`` is, reported by the lead-in ticks
     n_slots: int
     #: rad per joint, ``speed / rate``: each goal's step limit in the loop, so a tick after an overrun moves on at
     #: the lead-in's speed (and the lead-in catches up on its slower end) instead of jumping to the planned pose
@@ -219,7 +246,13 @@ class LeadIn:
 
     @classmethod
     def plan(
-        cls, q_from: np.ndarray, q_to: np.ndarray, *, speed: np.ndarray, rate: float, target: np.ndarray
+        cls,
+        q_from: npt.NDArray[np.float64],
+        q_to: npt.NDArray[np.float64],
+        *,
+        speed: npt.NDArray[np.float64],
+        rate: float,
+        target: npt.NDArray[np.float64],
     ) -> LeadIn:
         """The lead-in at peak joint speeds ``speed`` ``(n_joints,)`` rad/s (> 0) and ``rate`` ticks per second."""
         q_from = np.asarray(q_from, dtype=np.float64)
@@ -239,7 +272,7 @@ class LeadIn:
         return JointGoal(self.q_from + s * (self.q_to - self.q_from), self.target, self.max_step)
 
 
-class ClipSource:
+class ClipSource(TargetSource):
     """The :class:`TargetSource` of a :class:`ControlLoop`: its clip window, sampled a block of slots at a time.
 
     With ``lead_in_to`` (a pose ``(n_joints,)`` rad, normally :meth:`ControlLoop.initial_pose`), ``start``
@@ -247,17 +280,18 @@ class ClipSource:
     after it, at slot 0.
     """
 
-    def __init__(self, loop: ControlLoop, *, lead_in_to: np.ndarray | None = None):
+    def __init__(self, loop: ControlLoop, *, lead_in_to: npt.NDArray[np.float64] | None = None):
         self.loop = loop
         self.n_slots = loop.n_slots
         self.looping = loop.config.loop
         self.lead_in_to = lead_in_to
         self.lead_in: LeadIn | None = None  #: planned by ``start``
         self._block0 = self._block1 = 0  # the slots [block0, block1) of a pass whose targets are sampled
-        self._positions = self._clamped = np.empty(0)
-        self._rotations: np.ndarray | None = None
+        self._positions: npt.NDArray[np.float64] = np.empty((0, 3))  # theirs, (n, 3) m
+        self._rotations: npt.NDArray[np.float64] | None = None  # (n, 3, 3), or None: no rotations
+        self._clamped: list[bool] = []
 
-    def start(self, q_start: np.ndarray) -> int:
+    def start(self, q_start: npt.NDArray[np.float64]) -> int:
         """Plan the lead-in from ``q_start`` (if any); returns the first slot, ``-n`` for ``n`` lead-in slots."""
         if self.lead_in_to is None:
             return 0
@@ -277,27 +311,31 @@ class ClipSource:
     def finished(self, tick: int) -> bool:
         return not self.looping and tick >= self.n_slots
 
-    def clip_time(self, tick: int) -> float:
+    def clip_time(self, tick: int, t: float) -> float:
+        """The clip seconds of slot ``tick`` (``t``, the slot's time, is not needed: the window and speed are)."""
         if tick < 0:  # the lead-in: the clip waits at its start
             return self.loop.config.start
         return self.loop.clip_time(tick % self.n_slots if self.looping else tick)
 
-    def target_at(self, tick: int, t: float) -> tuple[np.ndarray, np.ndarray | None, bool] | JointGoal:
+    def target_at(self, tick: int, t: float) -> TickGoal:
         if tick < 0:
-            return self.lead_in.goal(tick)  # type: ignore[union-attr]
+            if self.lead_in is None:
+                raise RuntimeError("Expected start() to plan a lead-in before a slot < 0")
+            return self.lead_in.goal(tick)
         i = tick % self.n_slots if self.looping else tick
         if not self._block0 <= i < self._block1:  # sample the targets of the next slots, a block at a time
             if i == self._block1 or self._rotations is not None:
                 self._block0, self._block1 = i, min(i + _BLOCK, self.n_slots)
-                self._positions, self._rotations, self._clamped = self.loop.sample(self._block0, self._block1)
+                self._positions, self._rotations, clamped = self.loop.sample(self._block0, self._block1)
+                self._clamped = clamped.tolist()
             else:  # after a skip only this slot (an overrunning loop skips every tick)
                 one, moved = self.loop.targets.at(self.loop.clip_time(i))
                 self._block0, self._block1 = i, i + 1
-                self._positions, self._clamped = one[None], (moved,)
-                return one, None, moved
+                self._positions, self._clamped = one[None], [moved]
+                return TickTarget(one, None, moved)
         j = i - self._block0
         rotations = self._rotations
-        return self._positions[j], None if rotations is None else rotations[j], bool(self._clamped[j])
+        return TickTarget(self._positions[j], None if rotations is None else rotations[j], self._clamped[j])
 
 
 def run_on_bus(loop: ControlLoop, bus: Bus) -> RunSummary:

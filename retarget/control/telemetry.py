@@ -19,13 +19,11 @@ the rows of the lead-in to the clip's first pose that a replay on a bus runs bef
 
 from __future__ import annotations
 
-import io
 import os
 from collections.abc import Sequence
-from typing import IO, TYPE_CHECKING
+from typing import IO
 
-if TYPE_CHECKING:
-    from retarget.control.loop import TickRecord
+from retarget.control.loop import TickRecord
 
 __all__ = ["TelemetryWriter", "telemetry_columns"]
 
@@ -54,7 +52,7 @@ def telemetry_columns(joint_names: Sequence[str]) -> list[str]:
 
 
 class TelemetryWriter:
-    """Writes :class:`~retarget.tick_loop.TickRecord` rows to ``target`` (a path, or an open text stream).
+    """Writes :class:`~retarget.control.loop.TickRecord` rows to ``target`` (a path, or an open text stream).
 
     A context manager; callable, so it can be passed as ``on_tick``.  A path is
     opened (truncated) on ``__enter__``/``open()``; a stream is left open on close.
@@ -70,15 +68,18 @@ class TelemetryWriter:
         self._blank = ",".join([""] * len(self.joint_names))
 
     def open(self) -> TelemetryWriter:
+        """Open the file (a path) and write the header; a no-op when open."""
         if self._file is not None:
             return self
-        if isinstance(self.target, io.IOBase) or hasattr(self.target, "write"):
-            self._file = self.target  # type: ignore[assignment]
-        else:
-            self._file = open(self.target, "w", newline="", encoding="utf-8")  # noqa: SIM115 (closed in close())
+        target = self.target
+        if isinstance(target, str | os.PathLike):
+            file: IO[str] = open(target, "w", newline="", encoding="utf-8")  # noqa: SIM115 (closed in close())
             self._owns = True
-        self._file.write(",".join(self.columns) + "\n")
-        self._file.flush()
+        else:
+            file = target
+        file.write(",".join(self.columns) + "\n")
+        file.flush()
+        self._file = file
         return self
 
     def close(self) -> None:

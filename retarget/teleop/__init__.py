@@ -1,7 +1,7 @@
 """Teleoperation: move the tool point to targets that arrive while the arm moves.
 
 - :mod:`~retarget.teleop.gate`: parsing and checking target messages (:class:`TargetGate`, :class:`BasePose`);
-- :mod:`~retarget.teleop.sources`: where targets come from (``--to``, stdin, UDP);
+- :mod:`~retarget.teleop.sources`: where targets come from (one shot, stdin, UDP);
 - :mod:`~retarget.teleop.follower`: :class:`Follower` (the tick loop's target source) and :func:`run_teleop`.
 """
 

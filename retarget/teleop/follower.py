@@ -1,7 +1,7 @@
 """Teleoperation: steer the tool point to targets that arrive while the arm moves.
 
-A :class:`Follower` turns a target source (:mod:`retarget.teleop.sources`: ``--to``, ``--stdin``, ``--udp``,
-the interactive keys) into the per-tick target of the control loop (:class:`retarget.tick_loop.TargetSource`):
+A :class:`Follower` turns a target source (:mod:`retarget.teleop.sources`: one shot, stdin, UDP, the interactive
+keys) into the per-tick goal of the control loop (a :class:`~retarget.control.source.TargetSource`):
 
 - accepted targets queue in arrival order; the follower steers toward the oldest one it has not passed,
   so a stream that comes faster than the arm moves is still visited *in order*;
@@ -14,14 +14,17 @@ the interactive keys) into the per-tick target of the control loop (:class:`reta
   (slots skipped by an overrun do not count: a bus stall is no stalled arm; the arm is then at the
   nearest point it can reach);
 - with nothing to steer toward (no target yet, the last one reached or given up, or a stale stream) the
-  follower returns ``None``: the loop **holds** the commanded pose and runs no IK at all;
+  follower returns ``HOLD`` (``None``): the loop **holds** the commanded pose and runs no IK at all;
 - **stale**: while the source is open and no target came for ``timeout`` seconds, the queue is dropped
   and the arm holds until a new target comes;
 - **superseded**: with ``max_lag``, a target received more than ``max_lag`` seconds before the newest
   one is skipped (counted), so a live stream faster than the arm cannot build an ever-growing lag.
 
 Every outcome is recorded as a :class:`Visit`.  Frames: everything is the arm's base frame, metres;
-:class:`~retarget.teleop_input.BasePose` turns world-frame input into it at the gate.
+:class:`~retarget.teleop.gate.BasePose` turns world-frame input into it at the gate.
+
+:func:`run_teleop` runs the control loop (:func:`~retarget.control.loop.run_ticks`) on a follower until its
+source is finished and the servos settled, with a :class:`PoseSolver` for IK.
 """
 
 from __future__ import annotations
@@ -33,22 +36,23 @@ import math
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
-from retarget.errors import ConfigError
-from retarget.teleop.gate import step_toward
-
-if TYPE_CHECKING:
-    from retarget.arm.model import Arm
-    from retarget.control.bus import Bus
-    from retarget.control.clock import Clock
-    from retarget.control.loop import LoopConfig, TickRecord, TickStats
-    from retarget.control.summary import RunSummary
-    from retarget.ik.ccd import CCDSolver, IKResult
-    from retarget.teleop.gate import Target
-    from retarget.teleop.sources import Source
+from retarget.arm.model import Arm
+from retarget.control.bus import Bus
+from retarget.control.clock import Clock
+from retarget.control.loop import LoopConfig, TickRecord, run_ticks
+from retarget.control.source import HOLD, TargetSource, TickSolver, TickTarget
+from retarget.control.stats import TickStats
+from retarget.control.summary import RunSummary
+from retarget.errors import require_positive
+from retarget.ik.ccd import CCDSolver, IKResult
+from retarget.mapping.config import MappingConfig
+from retarget.mapping.geometry import ik_weights
+from retarget.teleop.gate import Target, step_toward
+from retarget.teleop.sources import Source
 
 __all__ = ["Follower", "Phase", "PoseSolver", "TeleopResult", "Visit", "run_teleop", "tool_point"]
 
@@ -75,44 +79,55 @@ class Visit:
     """The outcome of one target: reached/passed (``reached``) or given up at the nearest point."""
 
     seq: int  #: the target's number in its source
-    target: np.ndarray  #: ``(3,)`` metres, base frame
+    target: npt.NDArray[np.float64]  #: ``(3,)`` metres, base frame
     reached: bool
     residual: float  #: metres, commanded tool point to target when it was left
     tick: int  #: the tick it was left at
-    rotation: np.ndarray | None = None  #: ``(3, 3)`` the target orientation, if it had one
+    rotation: npt.NDArray[np.float64] | None = None  #: ``(3, 3)`` the target orientation, if it had one
     orientation_error: float = math.nan  #: radians, commanded tool frame to ``rotation`` when it was left
 
 
-def tool_point(arm: Arm, q: np.ndarray) -> np.ndarray:
+def tool_point(arm: Arm, q: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
     """The tool point ``(3,)`` metres, base frame, of joint angles ``q`` ``(n_joints,)`` radians."""
     T, _ = arm.fk(q)
     return np.array(T[:3, 3], dtype=np.float64)
 
 
-def rotation_angle(R: np.ndarray, target: np.ndarray) -> float:
+def rotation_angle(R: npt.NDArray[np.float64], target: npt.NDArray[np.float64]) -> float:
     """The angle, radians in ``[0, pi]``, of the rotation from ``R`` to ``target`` (both ``(3, 3)``)."""
     c = (float(np.trace(R.T @ target)) - 1.0) / 2.0
     return math.acos(min(1.0, max(-1.0, c)))
 
 
-def _positive(value: float, key: str, *, inf: bool = False) -> float:
-    value = float(value)
-    if not (value > 0 and (math.isfinite(value) or (inf and value == math.inf))):
-        raise ConfigError("Expected a number > 0", key=key, value=value)
-    return value
+class Follower(TargetSource):
+    """Follows the targets of ``source`` on ``arm``: a :class:`~retarget.control.source.TargetSource` that observes.
 
+    ``clock`` is the loop's clock (targets are stamped on it).  Keyword-only knobs: ``rate`` (ticks per second
+    of the loop), ``max_speed`` (m/s, ``inf``: no Cartesian limit), ``tolerance`` and ``pass_radius`` (m),
+    ``timeout`` (s, None: never stale), ``max_lag`` (s, None: visit every target), ``stall_time`` (s) and
+    ``stall_distance`` (m); ``orientation_tolerance`` (rad) for targets with a rotation, which count as reached
+    only when the tool frame is within it too.  ``lockstep``: for a virtual clock (``--fast``), wait up to
+    ``idle_wait`` *real* seconds for input whenever there is nothing to do, so virtual time does not race ahead
+    of a reader thread.  ``queue_length``: targets kept waiting.  A bad value raises ``ConfigError`` whose
+    ``key`` is the parameter's name.  The loop calls :meth:`start` with the start pose before the first tick,
+    then :meth:`target_at` and :meth:`observe` each tick; the outcomes are in :attr:`visits`.
 
-class Follower:
-    """Follows the targets of ``source`` on ``arm``; a :class:`~retarget.tick_loop.TargetSource`.
-
-    Keyword-only knobs (metres, seconds): ``rate`` (ticks per second of the loop), ``max_speed``
-    (``inf``: no Cartesian limit), ``tolerance``, ``pass_radius``, ``timeout`` (None: never stale),
-    ``max_lag`` (None: visit every target), ``stall_time``; ``orientation_tolerance`` (radians) for
-    targets with a rotation, which count as reached only when the tool frame is within it too.
-    ``lockstep``: for a virtual clock (``--fast``), wait up to ``idle_wait`` *real* seconds for input
-    whenever there is nothing to do, so virtual time does not race ahead of a reader thread.  Call
-    :meth:`start` with the start pose before the first tick.
+    >>> import retarget
+    >>> from retarget.control.clock import VirtualClock
+    >>> from retarget.teleop.gate import TargetBounds, TargetGate
+    >>> from retarget.teleop.sources import OneShotSource
+    >>> arm = retarget.load_arm("wx250s")
+    >>> clock = VirtualClock()
+    >>> source = OneShotSource(TargetGate(TargetBounds.for_arm(arm), clock=clock), "0.3,0,0.2")
+    >>> follower = Follower(arm, source, clock=clock, rate=100.0)
+    >>> follower.start(arm.rest)
+    0
+    >>> goal = follower.target_at(0, 0.0)  # the setpoint's first step toward the target: 0.2 m/s at 100 Hz
+    >>> round(float(np.linalg.norm(goal.position - follower.tool)) * 1e3, 3)
+    2.0
     """
+
+    observes = True  #: it watches the commanded pose to judge progress: not for the pipelined read-back
 
     def __init__(
         self,
@@ -136,23 +151,25 @@ class Follower:
         self.arm = arm
         self.source = source
         self.clock = clock
-        self.rate = _positive(rate, "--rate")
-        self.max_speed = _positive(max_speed, "--max-speed", inf=True)
-        self.tolerance = _positive(tolerance, "--tolerance")
-        self.pass_radius = max(_positive(pass_radius, "pass_radius"), self.tolerance)
-        self.timeout = None if timeout is None else _positive(timeout, "--timeout")
-        self.max_lag = None if max_lag is None else _positive(max_lag, "--max-lag")
-        self.stall_ticks = max(3, int(round(_positive(stall_time, "stall_time") * self.rate)))
+        self.rate = require_positive(rate, "rate")
+        self.max_speed = require_positive(max_speed, "max_speed", inf=True)
+        self.tolerance = require_positive(tolerance, "tolerance")
+        self.pass_radius = max(require_positive(pass_radius, "pass_radius"), self.tolerance)
+        self.timeout = None if timeout is None else require_positive(timeout, "timeout")
+        self.max_lag = None if max_lag is None else require_positive(max_lag, "max_lag")
+        self.stall_ticks = max(3, int(round(require_positive(stall_time, "stall_time") * self.rate)))
         self.stall_distance = float(stall_distance)
-        self.orientation_tolerance = _positive(orientation_tolerance, "orientation_tolerance")
-        self.tool_rotation: np.ndarray | None = None  #: ``(3, 3)`` the commanded tool frame after the last tick
+        self.orientation_tolerance = require_positive(orientation_tolerance, "orientation_tolerance")
+        self.tool_rotation: npt.NDArray[np.float64] | None = (
+            None  #: ``(3, 3)`` the commanded tool frame after the last tick
+        )
         self.lockstep = lockstep
         self.idle_wait = float(idle_wait)
         self._step = self.max_speed / self.rate  # metres per tick
         self._queue: collections.deque[Target] = collections.deque(maxlen=queue_length)
         self.goal: Target | None = None  #: the target being steered toward
-        self.setpoint: np.ndarray | None = None  #: ``(3,)`` the rate-limited point the IK solves for
-        self.tool: np.ndarray | None = None  #: ``(3,)`` the commanded tool point after the last tick
+        self.setpoint: npt.NDArray[np.float64] | None = None  #: ``(3,)`` the rate-limited point the IK solves for
+        self.tool: npt.NDArray[np.float64] | None = None  #: ``(3,)`` the commanded tool point after the last tick
         self.phase = Phase.WAITING
         self.visits: list[Visit] = []
         self.received = 0  #: targets taken from the source
@@ -164,21 +181,29 @@ class Follower:
 
     # ------------------------------------------------------------------ lifecycle
 
-    def start(self, q_start: np.ndarray) -> None:
-        """Begin at joint angles ``q_start`` ``(n_joints,)`` radians: the setpoint starts at their tool point."""
+    def start(self, q_start: npt.NDArray[np.float64]) -> int:
+        """Begin at joint angles ``q_start`` ``(n_joints,)`` radians: the setpoint starts at their tool point.
+        Returns the first slot, 0 (no lead-in)."""
         T, _ = self.arm.fk(q_start)
         self.tool, self.tool_rotation = T[:3, 3].copy(), T[:3, :3].copy()
         self.setpoint = self.tool.copy()
+        return 0
+
+    def _commanded(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        """The commanded tool point ``(3,)`` and frame ``(3, 3)`` after the last tick (since :meth:`start`)."""
+        if self.tool is None or self.tool_rotation is None:
+            raise RuntimeError("Follower.start(q_start) must be called before the first tick")
+        return self.tool, self.tool_rotation
 
     @property
-    def last_target(self) -> np.ndarray | None:
+    def last_target(self) -> npt.NDArray[np.float64] | None:
         """``(3,)`` the target being steered toward, else the last one left; None before the first."""
         if self.goal is not None:
             return self.goal.position
         return self.visits[-1].target if self.visits else None
 
     @property
-    def last_rotation(self) -> np.ndarray | None:
+    def last_rotation(self) -> npt.NDArray[np.float64] | None:
         """``(3, 3)`` the orientation of :attr:`last_target`, if it has one."""
         if self.goal is not None:
             return self.goal.rotation
@@ -210,11 +235,12 @@ class Follower:
                 self.skipped += 1
             if self.goal is not None and newest - self.goal.received > self.max_lag:
                 self.goal = None  # superseded: steer on from where the arm is to the next one
-                self.setpoint = self.tool.copy()
+                self.setpoint = self._commanded()[0].copy()
                 self.skipped += 1
 
-    def target_at(self, tick: int, t: float) -> tuple[np.ndarray, np.ndarray | None, bool] | None:
-        """The target of tick ``tick``: ``(position (3,), rotation (3, 3) | None, clamped)``, or None to hold."""
+    def target_at(self, tick: int, t: float) -> TickTarget | None:
+        """The goal of tick ``tick``: the setpoint as a :class:`~retarget.control.source.TickTarget` (``(3,)``
+        metres, the target's rotation ``(3, 3)`` or None), or ``HOLD`` (None) with nothing to steer toward."""
         if self.setpoint is None:
             raise RuntimeError("Follower.start(q_start) must be called before the first tick")
         self._pull()
@@ -228,18 +254,17 @@ class Follower:
                         self._leave(False, tick)
                 self._queue.clear()
                 self.phase = Phase.STALE
-                return None
+                return HOLD
         if self.goal is None:
             if not self._queue and self.lockstep and not self.source.closed:
                 self.source.wait(self.idle_wait)
                 self._pull()
             if not self._queue:
-                if self.phase is Phase.STALE:
-                    return None
-                self.phase = Phase.HOLDING if self.visits else Phase.WAITING
-                return None
+                if self.phase is not Phase.STALE:
+                    self.phase = Phase.HOLDING if self.visits else Phase.WAITING
+                return HOLD
             self.goal = self._queue.popleft()
-            self.setpoint = self.tool.copy()  # restart the walk where the arm is commanded to be
+            self.setpoint = self._commanded()[0].copy()  # restart the walk where the arm is commanded to be
             self._best, self._since_best = math.inf, 0
         self.phase = Phase.MOVING
         self._last_tick = tick
@@ -247,17 +272,19 @@ class Follower:
         # stream or a wait, that gap is time spent standing, and after an overrun the loop's joint limit is one
         # slot too, so a longer step would only let the setpoint (and the IK) run ahead of the speed limit
         self.setpoint = step_toward(self.setpoint, self.goal.position, self._step)
-        return self.setpoint, self.goal.rotation, False
+        return TickTarget(self.setpoint, self.goal.rotation, False)
 
-    def observe(self, tick: int, q_cmd: np.ndarray, q_present: np.ndarray | None = None) -> None:
+    def observe(
+        self, tick: int, q_cmd: npt.NDArray[np.float64], q_present: npt.NDArray[np.float64] | None = None
+    ) -> None:
         """After tick ``tick``: the commanded joint angles ``q_cmd`` ``(n_joints,)`` radians."""
         T, _ = self.arm.fk(q_cmd)
-        self.tool, self.tool_rotation = T[:3, 3].copy(), T[:3, :3].copy()
-        goal = self.goal
-        if goal is None or not np.array_equal(self.setpoint, goal.position):
+        self.tool, self.tool_rotation = tool, rotation = T[:3, 3].copy(), T[:3, :3].copy()
+        goal, setpoint = self.goal, self.setpoint
+        if goal is None or setpoint is None or not np.array_equal(setpoint, goal.position):
             return  # holding, or the setpoint is still on its way
-        d = float(np.linalg.norm(self.tool - goal.position))
-        angle = 0.0 if goal.rotation is None else rotation_angle(self.tool_rotation, goal.rotation)
+        d = float(np.linalg.norm(tool - goal.position))
+        angle = 0.0 if goal.rotation is None else rotation_angle(rotation, goal.rotation)
         radius = self.pass_radius if self._queue else self.tolerance
         cost = d + ORIENTATION_SCALE * angle
         if d <= radius and angle <= self.orientation_tolerance:
@@ -276,18 +303,19 @@ class Follower:
         self._queue.clear()
         self.source.drain()
         if self.goal is not None:
-            residual = float(np.linalg.norm(self.tool - self.goal.position))
+            residual = float(np.linalg.norm(self._commanded()[0] - self.goal.position))
             self._leave(residual <= self.tolerance, self._last_tick, residual)
 
     def _leave(self, reached: bool, tick: int, residual: float | None = None) -> None:
         goal = self.goal
         assert goal is not None
+        tool, rotation = self._commanded()
         if residual is None:
-            residual = float(np.linalg.norm(self.tool - goal.position))
-        angle = math.nan if goal.rotation is None else rotation_angle(self.tool_rotation, goal.rotation)
+            residual = float(np.linalg.norm(tool - goal.position))
+        angle = math.nan if goal.rotation is None else rotation_angle(rotation, goal.rotation)
         self.visits.append(Visit(goal.seq, goal.position, reached, residual, tick, goal.rotation, angle))
         self.goal = None
-        self.setpoint = self.tool.copy()
+        self.setpoint = tool.copy()
         self.phase = Phase.HOLDING
 
 
@@ -306,15 +334,15 @@ class TeleopResult:
     summary: RunSummary
     stats: TickStats
     visits: tuple[Visit, ...]
-    target: np.ndarray | None  #: the last target steered toward (None: no target came)
-    reached: np.ndarray  #: tool point of the final present positions (of the goals in a dry run)
+    target: npt.NDArray[np.float64] | None  #: the last target steered toward (None: no target came)
+    reached: npt.NDArray[np.float64]  #: tool point of the final present positions (of the goals in a dry run)
     residual: float | None  #: metres, ``|reached - target|``
     tolerance: float
     received: int  #: targets accepted
     rejects: dict[str, int]  #: rejected messages by reason
     stale_events: int
     skipped: int  #: targets superseded by newer ones (``max_lag``) and not visited
-    q_final: np.ndarray  #: ``(n_joints,)`` rad, the final present positions (goals in a dry run)
+    q_final: npt.NDArray[np.float64]  #: ``(n_joints,)`` rad, the final present positions (goals in a dry run)
     #: radians, the final tool frame to the last target's orientation (nan when it had none)
     orientation_error: float = math.nan
     orientation_tolerance: float = DEFAULT_ORIENTATION_TOLERANCE
@@ -330,7 +358,7 @@ class TeleopResult:
     def to_dict(self) -> dict[str, object]:
         """JSON-ready: lengths in metres (``_m``) or millimetres (``_mm``), angles in degrees (``_deg``)."""
 
-        def vec(v: np.ndarray | None) -> list[float] | None:
+        def vec(v: npt.NDArray[np.float64] | None) -> list[float] | None:
             return None if v is None else [round(float(x), 6) for x in v]
 
         return {
@@ -366,40 +394,51 @@ class TeleopResult:
 
 
 class PoseSolver:
-    """Two :class:`~retarget.ik.CCDSolver` s behind one ``solve``: targets without a rotation use the
-    mapping's position-only per-joint weights (roll joints held), targets with one use every joint and
-    an orientation weight.  Budget and tolerance from the loop config."""
+    """Two :class:`~retarget.ik.CCDSolver` s behind one ``solve`` (a :class:`~retarget.control.source.TickSolver`):
+    targets without a rotation use the mapping's position-only per-joint weights (roll joints held), targets
+    with one use every joint and an orientation weight.  Budget and tolerance from the loop config."""
 
     def __init__(self, arm: Arm, config: LoopConfig, *, orientation_weight: float = 0.1):
-        from retarget.ik.ccd import CCDSolver
-        from retarget.mapping.config import MappingConfig
-        from retarget.mapping.geometry import ik_weights
-
         mapping = MappingConfig.from_table(arm.mapping, path=arm.source)
-        budget = {"max_iterations": config.ik_iterations, "tolerance": config.ik_tolerance}
-        self.position = CCDSolver(arm, weights=ik_weights(arm, mapping), **budget)
-        self.pose = CCDSolver(arm, orientation_weight=orientation_weight, **budget)
+        iterations, tolerance = config.ik_iterations, config.ik_tolerance
+        weights = ik_weights(arm, mapping)
+        self.position = CCDSolver(arm, weights=weights, max_iterations=iterations, tolerance=tolerance)
+        self.pose = CCDSolver(
+            arm, orientation_weight=orientation_weight, max_iterations=iterations, tolerance=tolerance
+        )
 
-    def solve(self, target: np.ndarray, q0: np.ndarray, rotation: np.ndarray | None = None) -> IKResult:
+    def solve(
+        self,
+        target: npt.NDArray[np.float64],
+        q0: npt.NDArray[np.float64],
+        rotation: npt.NDArray[np.float64] | None = None,
+    ) -> IKResult:
+        """IK for the tool point at ``target`` ``(3,)`` m (and frame ``rotation`` ``(3, 3)``) from ``q0`` rad."""
         if rotation is None:
             return self.position.solve(target, q0)
         return self.pose.solve(target, q0, rotation)
 
 
-class _Run:
+class _Run(TargetSource):
     """The follower seen by the loop: adds the end condition (the source finished and the servos settled)."""
+
+    observes = True
 
     def __init__(self, follower: Follower, settle_ticks: int):
         self.follower = follower
         self.settle_ticks = settle_ticks
-        self.target_at = follower.target_at
-        self.start = follower.start
-        self.present: np.ndarray | None = None
-        self.previous: np.ndarray | None = None
-        self.q_cmd: np.ndarray | None = None
+        self.present: npt.NDArray[np.float64] | None = None
+        self.previous: npt.NDArray[np.float64] | None = None
+        self.q_cmd: npt.NDArray[np.float64] | None = None
         self._done_tick: int | None = None
 
-    def observe(self, tick: int, q_cmd: np.ndarray, q_present: np.ndarray | None) -> None:
+    def start(self, q_start: npt.NDArray[np.float64]) -> int:
+        return self.follower.start(q_start)
+
+    def target_at(self, tick: int, t: float) -> TickTarget | None:
+        return self.follower.target_at(tick, t)
+
+    def observe(self, tick: int, q_cmd: npt.NDArray[np.float64], q_present: npt.NDArray[np.float64] | None) -> None:
         self.follower.observe(tick, q_cmd, q_present)
         self.q_cmd, self.previous, self.present = q_cmd, self.present, q_present
 
@@ -424,8 +463,8 @@ def run_teleop(
     config: LoopConfig,
     clock: Clock,
     bus: Bus | None = None,
-    solver: CCDSolver | PoseSolver | None = None,
-    q_start: np.ndarray | None = None,
+    solver: TickSolver | None = None,
+    q_start: npt.NDArray[np.float64] | None = None,
     tolerance: float = DEFAULT_TOLERANCE,
     settle_time: float = 2.0,
     on_tick: Callable[[TickRecord], None] | None = None,
@@ -433,22 +472,32 @@ def run_teleop(
     stop: threading.Event | None = None,
     name: str = "teleop",
 ) -> TeleopResult:
-    """Run the shared control loop (:func:`retarget.tick_loop.run_ticks`) on ``follower`` until its source is
+    """Run the control loop (:func:`~retarget.control.loop.run_ticks`) on ``follower`` until its source is
     finished and the servos settled (at most ``settle_time`` s more), ``config.max_ticks``, ``stop`` or Ctrl-C.
 
-    ``bus`` must be connected (None: a dry run).  The reached point is the FK of the positions read
-    back at the end.  ``solver`` defaults to a :class:`~retarget.ik.CCDSolver` with the config's budget
-    and the mapping's per-joint weights (orientation weight 0.1 for targets with a rotation).
-    """
-    from retarget.control.loop import run_ticks
+    ``bus`` must be connected (None: a dry run); ``clock`` is the loop's (and the follower's).  The start pose
+    ``(n_joints,)`` rad is the bus's present positions, else ``q_start``, else the arm's rest pose.  ``solver``
+    defaults to a :class:`PoseSolver` with the config's budget.  ``on_tick``/``on_progress`` get
+    :class:`~retarget.control.loop.TickRecord` s as in ``run_ticks``; ``name`` labels the summary.  Returns a
+    :class:`TeleopResult`: the reached point ``(3,)`` m is the FK of the positions read back at the end (of the
+    goals in a dry run), reached when within ``tolerance`` metres of the last target.
 
-    if solver is None:
-        solver = PoseSolver(arm, config)
+    >>> import retarget
+    >>> from retarget.control.clock import VirtualClock
+    >>> from retarget.teleop.gate import TargetBounds, TargetGate
+    >>> from retarget.teleop.sources import OneShotSource
+    >>> arm = retarget.load_arm("wx250s")
+    >>> clock = VirtualClock()
+    >>> source = OneShotSource(TargetGate(TargetBounds.for_arm(arm), clock=clock), "0.3,0,0.2")
+    >>> result = run_teleop(arm, Follower(arm, source, clock=clock, rate=100.0), config=LoopConfig(), clock=clock)
+    >>> result.reached_target, result.residual is not None and result.residual <= 0.005
+    (True, True)
+    """
     run = _Run(follower, settle_ticks=max(1, int(round(settle_time * config.rate))))
     stats = run_ticks(
         arm,
         run,
-        solver,
+        solver if solver is not None else PoseSolver(arm, config),
         config=config,
         clock=clock,
         bus=bus,
@@ -457,7 +506,14 @@ def run_teleop(
         on_progress=on_progress,
         stop=stop,
     )
+    return _result(arm, follower, stats, tolerance=tolerance, name=name)
+
+
+def _result(arm: Arm, follower: Follower, stats: TickStats, *, tolerance: float, name: str) -> TeleopResult:
+    """The :class:`TeleopResult` of a run that ended with ``stats``."""
     q_final = stats.q_present if stats.q_present is not None else stats.q_cmd
+    if q_final is None:
+        raise RuntimeError("Expected the run's last goals in its stats")
     T, _ = arm.fk(q_final)
     reached = np.array(T[:3, 3], dtype=np.float64)
     rotation = follower.last_rotation

@@ -1,6 +1,6 @@
 """Teleoperation targets: parsing and validation of messages into base-frame targets.
 
-A *message* is one line (``--stdin``) or one datagram (``--udp``), at most ``max_bytes`` long::
+A *message* is one line (of stdin) or one datagram (UDP), at most ``max_bytes`` long::
 
     0.30 0 0.20                                  x y z            (spaces and/or commas)
     0.30,0,0.20,0,90,0                           x y z roll pitch yaw
@@ -17,7 +17,7 @@ shoulder pivot than the arm's reach + margin).  A rejected message never becomes
 moves the arm.
 
 An accepted message becomes a :class:`Target` stamped with its receive time on the *loop's* clock.
-The sources the messages arrive from (stdin, UDP, ``--to``) are in :mod:`retarget.teleop.sources`;
+The sources the messages arrive from (stdin, UDP, one shot) are in :mod:`retarget.teleop.sources`;
 :func:`step_toward` is the follower's Cartesian speed limit.
 
 This module is math only: it imports neither ``drivers``, ``sim``, ``serial`` nor sockets.
@@ -34,15 +34,15 @@ import re
 import threading
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
+from retarget.arm.kinematics import rpy_matrix
+from retarget.arm.model import Arm
+from retarget.control.clock import Clock
 from retarget.errors import ConfigError
-
-if TYPE_CHECKING:
-    from retarget.arm.model import Arm
-    from retarget.control.clock import Clock
+from retarget.mapping.geometry import arm_geometry
 
 __all__ = [
     "BasePose",
@@ -74,7 +74,8 @@ class Reject(enum.Enum):
 
 
 class TargetRejected(ConfigError):
-    """A message that is not an acceptable target; ``reason`` says why.  ``key`` names the input (``--to``)."""
+    """A message that is not an acceptable target; ``reason`` says why.  ``key`` names the input (a parameter
+    such as ``position``, or ``target`` for a message of a stream)."""
 
     def __init__(self, reason: Reject, message: str, *, key: str = "target", value: object = None):
         self.reason = reason
@@ -85,8 +86,10 @@ class TargetRejected(ConfigError):
 
 
 def _short(value: object, limit: int = 60) -> object:
-    if isinstance(value, bytes | str) and len(value) > limit:
-        return value[:limit] + (b"..." if isinstance(value, bytes) else "...")
+    if isinstance(value, bytes) and len(value) > limit:
+        return value[:limit] + b"..."
+    if isinstance(value, str) and len(value) > limit:
+        return value[:limit] + "..."
     return value
 
 
@@ -97,8 +100,8 @@ def _short(value: object, limit: int = 60) -> object:
 class Message:
     """A parsed message, before the frame change and the bounds: ``position`` ``(3,)`` metres, ``rpy`` radians."""
 
-    position: np.ndarray
-    rpy: np.ndarray | None = None
+    position: npt.NDArray[np.float64]
+    rpy: npt.NDArray[np.float64] | None = None
 
 
 _NUMBER = re.compile(r"^[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?$|^[+-]?(?:nan|inf|infinity)$", re.IGNORECASE)
@@ -182,23 +185,24 @@ class BasePose:
     ``rotation`` ``(3, 3)``, ``translation`` ``(3,)`` metres.
     """
 
-    rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
-    translation: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    rotation: npt.NDArray[np.float64] = field(default_factory=lambda: np.eye(3))
+    translation: npt.NDArray[np.float64] = field(default_factory=lambda: np.zeros(3))
 
     @classmethod
     def from_xyz_rpy(cls, xyz: Sequence[float], rpy_deg: Sequence[float] = (0.0, 0.0, 0.0)) -> BasePose:
         """From a position (metres) and URDF roll-pitch-yaw (degrees)."""
-        from retarget.arm.kinematics import rpy_matrix
+        rpy = np.radians(np.asarray(rpy_deg, dtype=np.float64)).tolist()
+        return cls(rpy_matrix(rpy), np.asarray(xyz, dtype=np.float64))
 
-        return cls(rpy_matrix(np.radians(np.asarray(rpy_deg, dtype=np.float64))), np.asarray(xyz, dtype=np.float64))
-
-    def to_base(self, position: np.ndarray, rotation: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+    def to_base(
+        self, position: npt.NDArray[np.float64], rotation: npt.NDArray[np.float64] | None = None
+    ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64] | None]:
         """A world-frame ``position`` ``(3,)`` (and ``rotation`` ``(3, 3)``) in the base frame."""
         R = self.rotation
         p = R.T @ (np.asarray(position, dtype=np.float64) - self.translation)
         return p, None if rotation is None else R.T @ rotation
 
-    def to_world(self, position: np.ndarray) -> np.ndarray:
+    def to_world(self, position: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
         """A base-frame ``position`` ``(3,)`` in the world frame."""
         return self.rotation @ np.asarray(position, dtype=np.float64) + self.translation
 
@@ -208,9 +212,9 @@ class TargetBounds:
     """Where targets may lie, base frame, metres: inside the box ``lower..upper`` and within ``max_radius``
     of ``center`` (the shoulder pivot).  Build with :meth:`for_arm`."""
 
-    lower: np.ndarray  #: ``(3,)`` box corner
-    upper: np.ndarray  #: ``(3,)`` box corner
-    center: np.ndarray  #: ``(3,)`` the shoulder pivot
+    lower: npt.NDArray[np.float64]  #: ``(3,)`` box corner
+    upper: npt.NDArray[np.float64]  #: ``(3,)`` box corner
+    center: npt.NDArray[np.float64]  #: ``(3,)`` the shoulder pivot
     max_radius: float  #: the arm's reach from the pivot + margin
 
     @classmethod
@@ -224,8 +228,6 @@ class TargetBounds:
         Targets between the reach and reach + margin are accepted: the arm goes to the nearest
         point it can reach and reports the residual.
         """
-        from retarget.mapping.geometry import arm_geometry
-
         if not (math.isfinite(margin) and margin >= 0):
             raise ConfigError("Expected a margin >= 0 m", key="margin", value=margin)
         g = arm_geometry(arm)
@@ -237,13 +239,13 @@ class TargetBounds:
         else:
             values = np.asarray(box, dtype=np.float64)
             if values.shape != (6,) or not np.all(np.isfinite(values)):
-                raise ConfigError("Expected 6 finite numbers xmin,ymin,zmin,xmax,ymax,zmax", key="--box", value=box)
+                raise ConfigError("Expected 6 finite numbers xmin,ymin,zmin,xmax,ymax,zmax", key="box", value=box)
             lower, upper = values[:3], values[3:]
             if not np.all(lower < upper):
-                raise ConfigError("Expected each minimum below its maximum", key="--box", value=list(values))
+                raise ConfigError("Expected each minimum below its maximum", key="box", value=list(values))
         return cls(lower=lower, upper=upper, center=g.pivot.copy(), max_radius=float(radius))
 
-    def check(self, position: np.ndarray, *, key: str = "target") -> None:
+    def check(self, position: npt.NDArray[np.float64], *, key: str = "target") -> None:
         """Raise :class:`TargetRejected` (``OUT_OF_BOX``/``OUT_OF_REACH``) unless ``position`` ``(3,)`` is allowed."""
         p = np.asarray(position, dtype=np.float64)
         if not (np.all(p >= self.lower) and np.all(p <= self.upper)):
@@ -257,7 +259,7 @@ class TargetBounds:
                                  f"shoulder (reach + margin), got {r:.3f} m", key=key, value=_fmt(p))  # fmt: skip
 
 
-def _fmt(p: np.ndarray) -> str:
+def _fmt(p: npt.NDArray[np.float64]) -> str:
     return ",".join(f"{v:.4g}" for v in p)
 
 
@@ -269,8 +271,8 @@ class Target:
     """An accepted target: ``position`` ``(3,)`` metres and ``rotation`` ``(3, 3)`` or None, base frame;
     ``received`` seconds on the loop's clock; ``seq`` counts accepted targets from 0."""
 
-    position: np.ndarray
-    rotation: np.ndarray | None
+    position: npt.NDArray[np.float64]
+    rotation: npt.NDArray[np.float64] | None
     received: float
     seq: int
 
@@ -333,11 +335,11 @@ class TargetGate:
         self.accepted = 0
         self._lock = threading.Lock()
 
-    def convert(self, message: Message, *, key: str = "target") -> tuple[np.ndarray, np.ndarray | None]:
+    def convert(
+        self, message: Message, *, key: str = "target"
+    ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64] | None]:
         """A parsed message -> ``(position (3,), rotation (3, 3) | None)`` in the base frame, bound-checked."""
-        from retarget.arm.kinematics import rpy_matrix
-
-        rotation = None if message.rpy is None else rpy_matrix(message.rpy)
+        rotation = None if message.rpy is None else rpy_matrix(message.rpy.tolist())
         position = message.position
         if self.frame_pose is not None:
             position, rotation = self.frame_pose.to_base(position, rotation)
@@ -367,7 +369,9 @@ class TargetGate:
 # --------------------------------------------------------------------------------------------------- motion helper
 
 
-def step_toward(current: np.ndarray, goal: np.ndarray, max_distance: float) -> np.ndarray:
+def step_toward(
+    current: npt.NDArray[np.float64], goal: npt.NDArray[np.float64], max_distance: float
+) -> npt.NDArray[np.float64]:
     """``current`` ``(3,)`` moved toward ``goal`` ``(3,)`` by at most ``max_distance`` metres (a Cartesian speed
     limit of ``max_distance`` per tick); ``goal`` itself when it is closer.  ``inf`` means no limit."""
     current = np.asarray(current, dtype=np.float64)
@@ -376,4 +380,5 @@ def step_toward(current: np.ndarray, goal: np.ndarray, max_distance: float) -> n
     dist = float(np.linalg.norm(d))
     if dist <= max_distance:
         return goal.copy()
-    return current + d * (max_distance / dist)
+    step: npt.NDArray[np.float64] = current + d * (max_distance / dist)
+    return step

@@ -1,8 +1,8 @@
 """Teleoperation target sources: where accepted targets arrive from (stdin, UDP, one shot, fed by hand).
 
-A source passes each raw message (one line of ``--stdin``, one datagram of ``--udp``, the ``--to``
-option) through a :class:`~retarget.teleop_input.TargetGate`, which parses, frame-changes and
-bound-checks it (:mod:`retarget.teleop.gate`).  Each accepted :class:`~retarget.teleop_input.Target`
+A source passes each raw message (one line of stdin, one datagram of UDP, the one-shot target) through a
+:class:`~retarget.teleop.gate.TargetGate`, which parses, frame-changes and bound-checks it
+(:mod:`retarget.teleop.gate`).  Each accepted :class:`~retarget.teleop.gate.Target`
 is stamped with its receive time on the *loop's* clock; a source keeps the latest one (:meth:`Source.latest`)
 and queues every accepted one in order (:meth:`Source.drain`), so a follower can visit a fast stream's
 points in order, and can decide staleness (no target for ``timeout`` seconds).  Network input binds to
@@ -21,7 +21,7 @@ import socket
 import sys
 import threading
 from collections.abc import Callable
-from typing import IO
+from typing import IO, Self
 
 from retarget.errors import ConfigError
 from retarget.teleop.gate import Message, Reject, Target, TargetGate, TargetRejected, parse_message
@@ -128,47 +128,52 @@ class Source:
     def close(self) -> None:
         self._finish()
 
-    def __enter__(self):
+    def __enter__(self) -> Self:
         return self.start()
 
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def start(self):
+    def start(self) -> Self:
+        """Start taking input (a reader thread, for the stdin and UDP sources); returns the source."""
         return self
 
 
 class OneShotSource(Source):
-    """A single target (``--to``), already accepted; closed from the start."""
+    """A single target, already accepted; closed from the start.
 
-    name = "--to"
+    ``position`` is ``"X,Y,Z"`` metres, ``rpy`` optionally ``"R,P,Y"`` degrees (the tool frame's orientation).
+    A bad one raises :class:`~retarget.teleop.gate.TargetRejected` whose ``key`` is ``position`` or ``rpy``.
+    """
 
-    def __init__(self, gate: TargetGate, text: str, *, rpy: str | None = None):
+    name = "one-shot"
+
+    def __init__(self, gate: TargetGate, position: str, *, rpy: str | None = None):
         super().__init__(gate)
-        message = parse_message(text, max_bytes=gate.max_bytes, key="--to")
+        message = parse_message(position, max_bytes=gate.max_bytes, key="position")
         if message is None:
-            raise TargetRejected(Reject.MALFORMED, "Expected X,Y,Z metres", key="--to", value=text)
+            raise TargetRejected(Reject.MALFORMED, "Expected X,Y,Z metres", key="position", value=position)
         if message.rpy is not None:
-            raise TargetRejected(Reject.MALFORMED, "Expected X,Y,Z (give the orientation with --rpy)", key="--to",
-                                 value=text)  # fmt: skip
+            message_text = "Expected X,Y,Z metres only (the orientation comes apart, as R,P,Y)"
+            raise TargetRejected(Reject.MALFORMED, message_text, key="position", value=position)
         if rpy is not None:
-            angles = parse_message(rpy, max_bytes=gate.max_bytes, key="--rpy")
+            angles = parse_message(rpy, max_bytes=gate.max_bytes, key="rpy")
             if angles is None:
-                raise TargetRejected(Reject.MALFORMED, "Expected R,P,Y degrees", key="--rpy", value=rpy)
+                raise TargetRejected(Reject.MALFORMED, "Expected R,P,Y degrees", key="rpy", value=rpy)
             message = Message(message.position, angles.position * (math.pi / 180.0))
-        position, rotation = gate.convert(message, key="--to")
+        position_m, rotation = gate.convert(message, key="position")
         gate.accepted += 1
-        self._push(Target(position, rotation, gate.clock.now(), 0))
+        self._push(Target(position_m, rotation, gate.clock.now(), 0))
         self._finish()
 
 
 class _ThreadSource(Source):
-    def __init__(self, gate: TargetGate, **kwargs: object):
-        super().__init__(gate, **kwargs)  # type: ignore[arg-type]
+    def __init__(self, gate: TargetGate, *, queue_length: int = QUEUE_LENGTH):
+        super().__init__(gate, queue_length=queue_length)
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
 
-    def start(self):
+    def start(self) -> Self:
         """Start the reader thread (idempotent)."""
         if self._thread is None:
             self._thread = threading.Thread(target=self._run_guarded, name=f"retarget-{self.name}", daemon=True)
@@ -201,8 +206,10 @@ class StdinSource(_ThreadSource):
 
     name = "stdin"
 
-    def __init__(self, gate: TargetGate, stream: IO[bytes] | IO[str] | None = None, **kwargs: object):
-        super().__init__(gate, **kwargs)
+    def __init__(
+        self, gate: TargetGate, stream: IO[bytes] | IO[str] | None = None, *, queue_length: int = QUEUE_LENGTH
+    ):
+        super().__init__(gate, queue_length=queue_length)
         if stream is None:
             stream = getattr(sys.stdin, "buffer", sys.stdin)
         self.stream = stream
@@ -216,23 +223,35 @@ class StdinSource(_ThreadSource):
             if not line:
                 return
             self.lines += 1
-            nl = "\n" if isinstance(line, str) else b"\n"
-            if not line.endswith(nl) and len(line) > limit:  # over the limit: skip the rest of this line
-                while line and not line.endswith(nl):
+            if not _ends_line(line) and len(line) > limit:  # over the limit: skip the rest of this line
+                while line and not _ends_line(line):
                     line = readline(limit + 2)
                 self.gate.reject(Reject.OVERSIZE, f"Expected a line of at most {limit} bytes", source=self.name)
                 continue
             if self._stop.is_set():
                 return
-            self.feed(line.rstrip(nl).rstrip("\r" if isinstance(line, str) else b"\r"))
+            self.feed(_without_newline(line))
 
     def close(self) -> None:
         self._stop.set()
         super().close()
 
 
-def parse_address(text: str, *, default_host: str = DEFAULT_UDP_HOST, key: str = "--udp") -> tuple[str, int]:
-    """``"PORT"``, ``"HOST:PORT"`` or ``"[V6]:PORT"`` -> ``(host, port)``; the host defaults to loopback."""
+def _ends_line(line: bytes | str) -> bool:
+    return line.endswith(b"\n") if isinstance(line, bytes) else line.endswith("\n")
+
+
+def _without_newline(line: bytes | str) -> bytes | str:
+    if isinstance(line, bytes):
+        return line.rstrip(b"\n").rstrip(b"\r")
+    return line.rstrip("\n").rstrip("\r")
+
+
+def parse_address(text: str, *, default_host: str = DEFAULT_UDP_HOST, key: str = "address") -> tuple[str, int]:
+    """``"PORT"``, ``"HOST:PORT"`` or ``"[V6]:PORT"`` -> ``(host, port)``; the host defaults to loopback.
+
+    A bad one raises ``ConfigError`` naming ``key``.
+    """
     text = text.strip()
     host, sep, port_text = text.rpartition(":")
     if not sep:
@@ -272,8 +291,10 @@ class UdpSource(_ThreadSource):
     name = "udp"
     poll = 0.05  #: seconds between checks of the stop flag while no datagram comes
 
-    def __init__(self, gate: TargetGate, host: str = DEFAULT_UDP_HOST, port: int = 0, **kwargs: object):
-        super().__init__(gate, **kwargs)
+    def __init__(
+        self, gate: TargetGate, host: str = DEFAULT_UDP_HOST, port: int = 0, *, queue_length: int = QUEUE_LENGTH
+    ):
+        super().__init__(gate, queue_length=queue_length)
         if not is_loopback(host):  # said before binding, so the warning stands even when the bind fails
             log.warning(
                 "UDP target input on %s:%d is NOT loopback: anyone who can reach this address can move the arm",
@@ -286,7 +307,7 @@ class UdpSource(_ThreadSource):
             sock.bind((host, port))
         except OSError as exc:
             sock.close()
-            raise ConfigError(f"cannot bind UDP {host}:{port}: {exc.strerror or exc}", key="--udp",
+            raise ConfigError(f"cannot bind UDP {host}:{port}: {exc.strerror or exc}", key="address",
                               value=f"{host}:{port}") from exc  # fmt: skip
         sock.settimeout(self.poll)
         self._sock = sock

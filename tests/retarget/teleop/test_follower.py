@@ -72,7 +72,7 @@ def session(arm):
         finally:
             bus.close()
             source.close()
-            sim.unregister(url.removeprefix("sim://@"))
+            sim.unregister(url)
         return result, records, simbus, goals0, follower
 
     return go
@@ -342,11 +342,11 @@ def test_a_burst_before_one_tick_is_trimmed_to_max_lag(arm, times, goal_index, s
 @pytest.mark.parametrize(
     ("kwargs", "match"),
     [
-        ({"rate": 0}, "--rate"),
-        ({"max_speed": -1}, "--max-speed"),
-        ({"max_speed": float("nan")}, "--max-speed"),
-        ({"tolerance": 0}, "--tolerance"),
-        ({"timeout": 0}, "--timeout"),
+        ({"rate": 0}, "rate: "),
+        ({"max_speed": -1}, "max_speed: "),
+        ({"max_speed": float("nan")}, "max_speed: "),
+        ({"tolerance": 0}, "tolerance: "),
+        ({"timeout": 0}, "timeout: "),
     ],
     ids=["rate", "speed", "speed-nan", "tolerance", "timeout"],
 )

@@ -84,13 +84,13 @@ def test_one_shot_source(gate):
 @pytest.mark.parametrize(
     ("to", "rpy", "match"),
     [
-        ("0.3,0", None, "--to: Expected 'x y z'"),
-        ("", None, "--to: Expected X,Y,Z"),
-        ("0.3,0,0.2,0,0,0", None, "--rpy"),
-        ("nan,0,0.2", None, "--to: Expected finite"),
-        ("5,0,0.2", None, "--to: Expected a point inside the box"),
-        ("0.3,0,0.2", "0,0", "--rpy: Expected 'x y z'"),
-        ("0.3,0,0.2", "#", "--rpy: Expected R,P,Y"),
+        ("0.3,0", None, "position: Expected 'x y z'"),
+        ("", None, "position: Expected X,Y,Z"),
+        ("0.3,0,0.2,0,0,0", None, "position: Expected X,Y,Z metres only"),
+        ("nan,0,0.2", None, "position: Expected finite"),
+        ("5,0,0.2", None, "position: Expected a point inside the box"),
+        ("0.3,0,0.2", "0,0", "rpy: Expected 'x y z'"),
+        ("0.3,0,0.2", "#", "rpy: Expected R,P,Y"),
     ],
     ids=["short", "empty", "six", "nan", "box", "rpy-short", "rpy-empty"],
 )
@@ -146,7 +146,7 @@ def test_udp_non_loopback_warns(gate, caplog):
 
 
 def test_udp_bind_error(gate):
-    with UdpSource(gate) as src, pytest.raises(ConfigError, match="--udp: cannot bind UDP"):
+    with UdpSource(gate) as src, pytest.raises(ConfigError, match="address: cannot bind UDP"):
         UdpSource(gate, "127.0.0.1", src.address[1])
 
 
