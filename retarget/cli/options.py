@@ -43,6 +43,9 @@ OPTIONS: dict[str, str] = {
     "margin": "--margin",
     "box": "--box",
     "max_bytes": "--max-bytes",
+    "position": "--to",
+    "rpy": "--rpy",
+    "address": "--udp",
     # drivers.control_table.parse_ids; sim.Faults.from_options (retarget sim's fault options)
     "ids": "--ids",
     "drop": "--drop",
