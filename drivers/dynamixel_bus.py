@@ -48,7 +48,6 @@ import struct
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from types import TracebackType
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -59,12 +58,10 @@ from drivers.latency import check_latency_timer
 from drivers.port import open_port
 from drivers.servo_plan import MAX_PROFILE_MS, Profile, ServoPlan, ServoSettings, plan_servos
 from retarget.arm.load import load_arm
+from retarget.arm.model import Arm
 from retarget.control.bus import BusStatus, ShutdownMode, close_after_failure
 from retarget.control.clock import Clock, MonotonicClock
 from retarget.errors import BusError
-
-if TYPE_CHECKING:
-    from retarget.arm.model import Arm
 
 log = logging.getLogger(__name__)
 

@@ -14,17 +14,14 @@ from __future__ import annotations
 import enum
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from drivers import units
 from drivers.control_table import RETURN_DELAY_UNIT_US, DriveMode, Model, OperatingMode
 from drivers.control_table import model as lookup_model
+from retarget.arm.model import Arm
 from retarget.errors import ConfigError
-
-if TYPE_CHECKING:
-    from retarget.arm.model import Arm
 
 MAX_PROFILE_MS = 32737  #: the largest Profile Velocity of a time-based profile
 

@@ -37,18 +37,16 @@ import threading
 from collections import deque
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Protocol
+from typing import Protocol
 
 from drivers.control_table import BROADCAST_ID, MAX_ID, RAD_PER_PULSE, FactoryReset, Instruction, StatusError
 from retarget.arm.load import load_arm
+from retarget.arm.model import Arm
 from retarget.control.clock import Clock, MonotonicClock
 from retarget.errors import ConfigError
 from sim.faults import Faults, ReplyFaults, wire_time
 from sim.protocol import Packet, PacketParser, build_fast_read_status, build_status
 from sim.servo import SimServo
-
-if TYPE_CHECKING:
-    from retarget.arm.model import Arm
 
 log = logging.getLogger(__name__)
 
@@ -224,7 +222,7 @@ class SimBus:
             arm = load_arm(arm)
         clock = clock if clock is not None else MonotonicClock()
         baud = arm.baud if baud is None else baud
-        q = list(arm.rest_pose if pose is None else pose)
+        q = list(arm.rest.tolist() if pose is None else pose)
         if len(q) != arm.n_joints:
             raise ConfigError(f"Expected {arm.n_joints} joint angles", key="pose", value=q)
         servos = []

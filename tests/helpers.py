@@ -20,7 +20,7 @@ from dynamixel_sdk import PacketHandler, PortHandler
 
 import sim
 from drivers.control_table import Instruction, common_register
-from drivers.units import ticks_to_rad
+from drivers.units import pulses_to_rad
 from retarget.control.clock import VirtualClock
 from retarget.mapping import Targets, Workspace
 from sim.server import PtyServer
@@ -216,7 +216,7 @@ def servo_angles(simbus, arm) -> np.ndarray:
 
     return np.array(
         [
-            ticks_to_rad(simbus.servo(j.servos[0].id).get("Present Position"), offset=j.servos[0].offset)
+            pulses_to_rad(simbus.servo(j.servos[0].id).get("Present Position"), offset=j.servos[0].offset)
             for j in arm.joints
         ]
     )
@@ -319,7 +319,7 @@ TRANSPORTS = [
 
 
 # ------------------------------------------------------------------ teleop: an independent wx250s FK
-TICK_RAD = 2 * math.pi / 4096
+RAD_PER_PULSE = 2 * math.pi / 4096
 
 
 def _rot(axis: str, a: float) -> np.ndarray:
@@ -366,7 +366,7 @@ def servo_joint_angles(simbus, arm) -> np.ndarray:
 
     The driver reverses servos with Drive Mode, so the registers already read in the joint's sense."""
     assert all(j.servos[0].offset == 0 for j in arm.joints)
-    return np.array([(simbus.servo(j.servos[0].id).get("Present Position") - 2048) * TICK_RAD for j in arm.joints])
+    return np.array([(simbus.servo(j.servos[0].id).get("Present Position") - 2048) * RAD_PER_PULSE for j in arm.joints])
 
 
 def goal_registers(simbus) -> dict[int, int]:

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from drivers.units import rad_s_to_velocity_units, ticks_to_rad
+from drivers.units import pulses_to_rad, rad_s_to_velocity_units
 from retarget.cli import main
 from retarget.cli._bus import build_bus, servo_limits
 from retarget.control import LoopConfig
@@ -52,7 +52,7 @@ def test_build_bus_gives_the_driver_the_runs_limits(arm, registered):
         q0 = bus.read_positions()
         bus.write_goals(q0 + np.array([0.5, 0, 0, 0, 0, 0]))  # a goal 0.5 rad away: one step of the limit only
         waist = arm.joints[0].servos[0]
-        goal = float(ticks_to_rad(simbus.servo(waist.id).get("Goal Position"), offset=waist.offset))
+        goal = float(pulses_to_rad(simbus.servo(waist.id).get("Goal Position"), offset=waist.offset))
         assert goal - q0[0] == pytest.approx(math.pi / 50.0, abs=2 * math.pi / 4096)
 
 

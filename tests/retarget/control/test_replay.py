@@ -405,12 +405,12 @@ def test_a_stop_before_the_first_tick_gives_an_empty_summary(arm):
 
 def rest_as_read(arm) -> np.ndarray:
     """The rest pose as the driver reads it back from the simulated servos (whole position ticks), radians."""
-    from drivers.units import rad_to_ticks, ticks_to_rad
+    from drivers.units import pulses_to_rad, rad_to_pulses
 
     offsets = np.array([j.servos[0].offset for j in arm.joints])
     directions = np.array([j.servos[0].direction for j in arm.joints])
-    ticks = rad_to_ticks(arm.rest, offset=offsets, direction=directions)
-    return ticks_to_rad(ticks, offset=offsets, direction=directions)
+    pulses = rad_to_pulses(arm.rest, offset=offsets, direction=directions)
+    return pulses_to_rad(pulses, offset=offsets, direction=directions)
 
 
 def split_lead_in(records: list[TickRecord]) -> tuple[list[TickRecord], list[TickRecord]]:
