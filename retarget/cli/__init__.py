@@ -7,7 +7,10 @@ functions: ``add_parser(subparsers) -> argparse.ArgumentParser`` and
 Errors: a :class:`~retarget.errors.RetargetError` (bad file, bad config, bus
 failure) prints one line ``retarget: <message>`` on stderr and exits with the
 command's error status (2 for bad input by default); ``-v`` also prints the
-traceback.  Ctrl-C exits 130 after the command's own cleanup ran.
+traceback.  Ctrl-C exits 130 after the command's own cleanup ran.  The library's errors
+name fields (``rate``, ``mapping.floor``); :mod:`retarget.cli.options` maps them to the
+options that set them, in one table.  Shared options live in ``_arm`` and ``_bus``; the
+curses screen of ``teleop --interactive`` in :mod:`retarget.cli.tui`.
 """
 
 from __future__ import annotations
