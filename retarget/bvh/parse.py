@@ -1,14 +1,40 @@
 """Read BVH motion capture files: ``load_bvh(path) -> Motion``.
 
-The parser accepts what real exporters write: any order of rotation channels,
-differing per joint; position channels on any joint (they replace that
-joint's OFFSET); End Sites; LF, CRLF or CR-only line ends; tabs; scientific
-notation; ``Frames: 0``; names with spaces or colons, kept whole; trailing
-whitespace and a missing final newline.
+Lenient where real exporters and other readers are.  Accepted as is:
+
+- any order of rotation channels, differing per joint; position channels on
+  any joint (they replace that joint's OFFSET); End Sites; several ROOTs;
+- LF, CRLF or CR-only line ends; tabs and other spaces (Unicode ones too in
+  the hierarchy); blank lines; a UTF-8 byte order mark; trailing whitespace
+  and a missing final newline; keywords in any case; ``{`` on the joint's
+  line; names with spaces or colons, kept whole; scientific notation;
+- ``Frames: 0`` (a skeleton without motion, as in Perception Neuron's
+  templates): a :class:`Motion` with 0 frames.
+
+Accepted with a warning on the ``retarget.bvh.parse`` logger, naming the
+file and line (``clip.bvh:2: ...``), logged once the whole file is read:
+
+- a first joint written ``JOINT`` instead of ``ROOT`` (only the first);
+- lines after the ``Frames:`` count of frame lines: the first ``Frames``
+  lines are read and the rest ignored, whatever they hold, as most readers
+  do; the warning says how many lines were ignored and what ``Frames:``
+  promised.
 
 Everything else is a :class:`~retarget.errors.BvhError` naming the file and
 line and saying what was expected and what was found, e.g.
-``clip.bvh:190: Expected 93 values on frame line, got 92``.  The parser never
+``clip.bvh:190: Expected 93 values on frame line, got 92``:
+
+- an empty or binary file; a missing, misspelt or misplaced keyword, brace,
+  OFFSET, CHANNELS (count in ASCII digits, known channel names), ``Frames:``
+  (a whole number) or ``Frame Time:`` line; more than 500 nested joints;
+- fewer frame lines than ``Frames:`` promises, or a frame line (among the
+  first ``Frames``) without one value per channel;
+- a value that is not a decimal number (``nan``, ``inf``, ``1,5``), one that
+  overflows (``1e999``) or is larger in magnitude than ``MAX_VALUE`` (1e12:
+  far past any capture; it keeps FK finite), and a frame time outside
+  ``MIN_FRAME_TIME`` to ``MAX_FRAME_TIME`` (1e-6 to 1e6 seconds).
+
+The first problem in file order is the one reported.  The parser never
 loops on a short file and never returns partial data.
 
 Speed: the MOTION block is read in ~100 KB windows of whole lines, each with
@@ -16,7 +42,10 @@ a handful of vectorised passes (token boundaries, per-line counts, the
 numbers themselves: see :mod:`retarget.bvh.numbers`).  Only when something
 is irregular (a wrong count, an exponent, a bad token) is the block read
 again in one piece, to read the unusual numbers with ``float()`` and to report
-the first problem in file order.
+the first problem in file order.  Lines after the promised frames do not
+leave the windowed path: reading stops at the first of them.  A file with
+any CR (CRLF, CR-only or mixed line ends) is made LF first, in one copy, so
+every path sees the same lines.
 """
 
 from __future__ import annotations
@@ -50,6 +79,14 @@ _NUMBER_RE = re.compile(_NUMBER)
 _NUMBERS_RE = re.compile(rb"(?:%s\n)*%s" % (_NUMBER, _NUMBER))  # newline-separated
 _NONFINITE_RE = re.compile(rb"[+-]?(?:nan|inf|infinity)(?:\(\w*\))?", re.IGNORECASE)
 
+#: The largest magnitude of a number in the file (OFFSET, frame values).  No capture comes near it (1e12 cm is
+#: 70 times the Sun's distance; 1e12 degrees, 3e9 turns), and below it every joint position, sum and square that
+#: FK and the mapping compute stays finite, however deep the skeleton.
+MAX_VALUE = 1e12
+_TOO_BIG = f"Expected a number from {-MAX_VALUE:g} to {MAX_VALUE:g}"
+#: The range of ``Frame Time`` (seconds): 1 MHz to one frame in 11 days, so that fps and duration stay finite.
+MIN_FRAME_TIME, MAX_FRAME_TIME = 1e-6, 1e6
+
 
 def load_bvh(path: str | PathLike[str]) -> Motion:
     """Read the BVH file at ``path`` into a :class:`~retarget.bvh.motion.Motion`.
@@ -64,7 +101,8 @@ def load_bvh(path: str | PathLike[str]) -> Motion:
 
     Raises :class:`~retarget.errors.BvhError` ``"path:line: message"`` for a file that is not valid
     BVH (the message says what was expected and what was found; nothing partial is returned) and
-    ``OSError`` for one that cannot be read.
+    ``OSError`` for one that cannot be read.  Logs a warning ``"path:line: message"`` for what it
+    lets go: a root written ``JOINT``, lines after the ``Frames:`` count (ignored).
 
     >>> motion = load_bvh(DEMO_CLIP)
     >>> motion
@@ -75,10 +113,10 @@ def load_bvh(path: str | PathLike[str]) -> Motion:
     p = Path(path)
     with open(p, "rb") as f:
         try:  # map the file: its pages come from the page cache, not a fresh copy
-            text = np.frombuffer(mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ), dtype=np.uint8)
+            data: bytes | mmap.mmap = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
         except (OSError, ValueError):  # empty, or not mappable (a pipe, /proc): read it
-            text = np.frombuffer(f.read(), dtype=np.uint8)
-    return _parse(text, path=p)
+            data = f.read()
+    return _parse(data, path=p)
 
 
 def parse_bvh(text: str | bytes, *, path: str | PathLike[str] | None = None) -> Motion:
@@ -89,7 +127,7 @@ def parse_bvh(text: str | bytes, *, path: str | PathLike[str] | None = None) -> 
 
     Returns the :class:`~retarget.bvh.motion.Motion`, as :func:`load_bvh` does.  Raises
     :class:`~retarget.errors.BvhError` ``"path:line: message"`` (``<bvh>`` without ``path``) for text
-    that is not valid BVH.
+    that is not valid BVH, and logs the same warnings.
 
     >>> motion = parse_bvh('''HIERARCHY
     ... ROOT hips
@@ -124,7 +162,7 @@ def parse_bvh(text: str | bytes, *, path: str | PathLike[str] | None = None) -> 
     retarget.errors.BvhError: clip.bvh:1: Expected HIERARCHY, got 'MOTION'
     """
     data = text.encode("utf-8") if isinstance(text, str) else bytes(text)
-    return _parse(np.frombuffer(data, dtype=np.uint8), path=None if path is None else Path(path))
+    return _parse(data, path=None if path is None else Path(path))
 
 
 # --------------------------------------------------------------------------------------------- whole file
@@ -134,17 +172,18 @@ _MAX_DEPTH = 500  # nested joints; real skeletons stay under 100
 _HEAD = 1 << 16  # bytes tried first for the header
 
 
-def _parse(text: np.ndarray, *, path: Path | None) -> Motion:
-    """Parse the file's bytes ``text`` (uint8, may be read-only)."""
-    if bytes(text[:3]) == b"\xef\xbb\xbf":
-        text = text[3:]  # a UTF-8 byte order mark (on line 1: line numbers are unchanged)
+def _parse(data: bytes | mmap.mmap, *, path: Path | None) -> Motion:
+    """Parse the file's bytes ``data`` (read through a read-only uint8 view)."""
+    text = np.frombuffer(data, dtype=np.uint8)
+    skip = 3 if data[:3] == b"\xef\xbb\xbf" else 0  # a UTF-8 byte order mark (line numbers are unchanged)
+    text = text[skip:]
     size = text.size
     head = bytes(text[:_HEAD])
     if not head.strip() and not (text > 32).any():
         raise BvhError("Expected a BVH file starting with HIERARCHY, got an empty file", path=path, line=1)
-    _reject_binary(text, head, path)
-    if b"\r" in head:  # CR or CRLF line ends (a CR first met later is caught by _read_frames)
+    if data.find(b"\r", skip) >= 0:  # CR or CRLF line ends, even mixed with LF: made LF, then read (one memchr)
         return _parse_normalised(text, path)
+    _reject_binary(text, head, path)
     header = _Header(head, path)
     try:
         header.parse()
@@ -156,10 +195,9 @@ def _parse(text: np.ndarray, *, path: Path | None) -> Motion:
     if not complete:  # a header longer than the first bytes tried
         header = _Header(bytes(text), path)
         header.parse()
-    try:
-        channels = _read_frames(text, header.data_start, size - header.data_start, header, path)
-    except _CarriageReturns:
-        return _parse_normalised(text, path)
+    channels, extra = _read_frames(text, header.data_start, size - header.data_start, header, path)
+    for line, message in [*header.warnings, *([extra] if extra else [])]:  # the file is read: say what was let go
+        log.warning("%s:%d: %s", path or "<bvh>", line, message)
     return Motion(
         joint_names=tuple(j.name for j in header.joints),
         parents=np.array([j.parent for j in header.joints], dtype=np.intp),
@@ -170,10 +208,6 @@ def _parse(text: np.ndarray, *, path: Path | None) -> Motion:
         frame_time=header.frame_time,
         path=path,
     )
-
-
-class _CarriageReturns(Exception):
-    """The frames hold a CR the header did not: read the file again with its line ends normalised."""
 
 
 def _parse_normalised(text: np.ndarray, path: Path | None) -> Motion:
@@ -226,6 +260,7 @@ class _Header:
         self.frame_time = 0.0
         self.data_start = len(data)  # byte offset of the first frame line
         self.data_first_line = 1
+        self.warnings: list[tuple[int, str]] = []  # (line, message): logged once the whole file is read
 
     # -- lines
     def _error(self, message: str, line: int | None = None) -> BvhError:
@@ -241,12 +276,13 @@ class _Header:
             raw = data[self.pos : end]
             self.pos = end + 1
             self.line += 1
-            text = raw.strip()
+            try:
+                text = raw.decode("utf-8")
+            except UnicodeDecodeError:
+                text = raw.decode("latin-1")
+            text = text.strip()  # also Unicode spaces (NBSP, U+3000, ...), which split() separates words on
             if text:
-                try:
-                    return text.decode("utf-8")
-                except UnicodeDecodeError:
-                    return text.decode("latin-1")
+                return text
         return None
 
     def _expect_line(self, what: str) -> str:
@@ -258,16 +294,22 @@ class _Header:
 
     # -- grammar
     def parse(self) -> None:
-        first = self._expect_line("HIERARCHY")
+        first = self._next_line()
+        if first is None:  # only spaces: Unicode ones too (ASCII-only files are caught before)
+            raise self._error("Expected a BVH file starting with HIERARCHY, got an empty file", line=1)
         if first.split()[0].upper() != "HIERARCHY":
             raise self._error(f"Expected HIERARCHY, got {_show(first)}")
         if first.split()[1:]:
             raise self._error(f"Expected HIERARCHY alone on its line, got {_show(first)}")
         text = self._expect_line("ROOT")
-        if _keyword(text) != "ROOT":
+        keyword = _keyword(text)
+        if keyword == "JOINT":  # some exporters write the first joint as JOINT: it can only be the root
+            self.warnings.append((self.line, f"Read {_show(text)} as the ROOT (the hierarchy's first joint)"))
+        elif keyword != "ROOT":
             raise self._error(f"Expected ROOT after HIERARCHY, got {_show(text)}")
         while True:
-            self._joint(text, parent=-1, keyword="ROOT")
+            self._joint(text, parent=-1, keyword=keyword)
+            keyword = "ROOT"
             text = self._expect_line("MOTION after the hierarchy")
             kw = _keyword(text)
             if kw == "MOTION":
@@ -369,11 +411,13 @@ class _Header:
         value = float(word)
         if not math.isfinite(value):
             raise self._error(f"Expected a finite number in {where}, got {word!r}")
+        if abs(value) > MAX_VALUE:
+            raise self._error(f"{_TOO_BIG} in {where}, got {word!r}")
         return value
 
     def _channels(self, text: str) -> tuple[str, ...]:
         words = text.split()[1:]
-        if not words or not words[0].isdigit():
+        if not words or not _is_count(words[0]):
             raise self._error(f"Expected a channel count after CHANNELS, got {_show(' '.join(words[:1]) or '')}")
         count = int(words[0])
         names = words[1:]
@@ -394,7 +438,7 @@ class _Header:
         m = _FRAMES_RE.fullmatch(text)
         if not m:
             raise self._error(f"Expected 'Frames: <count>' after MOTION, got {_show(text)}")
-        if not m.group(1).isdigit():
+        if not _is_count(m.group(1)):
             raise self._error(f"Expected a whole number of frames, got {m.group(1)!r}")
         self.n_frames = int(m.group(1))
         text = self._expect_line("'Frame Time: <seconds>' after Frames")
@@ -408,11 +452,21 @@ class _Header:
             frame_time = math.nan
         if not (math.isfinite(frame_time) and frame_time > 0):
             raise self._error(f"Expected a positive frame time in seconds, got {word!r}")
+        if not MIN_FRAME_TIME <= frame_time <= MAX_FRAME_TIME:
+            raise self._error(
+                f"Expected a frame time from {MIN_FRAME_TIME:g} to {MAX_FRAME_TIME:g} seconds, got {word!r}"
+            )
         self.frame_time = frame_time
         self.data_start = min(self.pos, len(self.data))
         self.data_first_line = self.line + 1
         if self.n_channels == 0:
             raise self._error("Expected at least one channel in the hierarchy, got none", line=2)
+
+
+def _is_count(word: str) -> bool:
+    """``word`` is a whole number >= 0 in ASCII digits (``str.isdigit`` also takes '²' and '١', which ``int`` may
+    refuse)."""
+    return word.isascii() and word.isdigit()
 
 
 def _keyword(text: str) -> str:
@@ -438,27 +492,44 @@ def _show(text: str, limit: int = 60) -> str:
 #: Bytes of MOTION block read per step: the temporaries of a step stay below glibc's mmap threshold, so they are
 #: recycled instead of page-faulted in afresh (which costs more than the arithmetic on this kind of machine).
 _WINDOW = 96 * 1024
+_SEPARATORS = bytes(range(33))  # the bytes that separate numbers (see bvh_numbers.token_bounds)
 
 
-def _read_frames(buf: np.ndarray, base: int, length: int, header: _Header, path: Path | None) -> np.ndarray:
+def _read_frames(
+    buf: np.ndarray, base: int, length: int, header: _Header, path: Path | None
+) -> tuple[np.ndarray, tuple[int, str] | None]:
     """``(n_frames, n_channels)`` float64 from the frame lines in ``buf[base : base + length]``; every count and
     value checked.  The common case (all counts right, all numbers plain decimals) is read window by window;
-    anything else is read again in one piece to find and report the first problem."""
-    channels = _read_frames_fast(buf, base, length, header.n_frames, header.n_channels)
-    if channels is not None:
-        return channels
-    if int(np.count_nonzero(buf[base : base + length] == 13)):
-        raise _CarriageReturns
-    return _read_frames_checked(buf, base, length, header, path)
+    anything else is read again in one piece to find and report the first problem.
+
+    Lines after the first ``n_frames`` are ignored, as other readers do; the second item is then the warning
+    to log, ``(line, message)``, else None."""
+    got = _read_frames_fast(buf, base, length, header.n_frames, header.n_channels)
+    if got is None:
+        got = _read_frames_checked(buf, base, length, header, path)
+    channels, extra_from = got
+    if extra_from is None:
+        return channels, None
+    block = buf[base : base + length]
+    line = header.data_first_line + int(np.count_nonzero(block[:extra_from] == 10))
+    rest = bytes(block[extra_from:]).split(b"\n")  # (line ends are LF by now)
+    ignored = sum(1 for text in rest if text.translate(None, _SEPARATORS))
+    n = header.n_frames
+    message = f"Ignored {ignored} line{'s' * (ignored != 1)} after the {n} frame{'s' * (n != 1)} of 'Frames: {n}'"
+    return channels, (line, message)
 
 
-def _read_frames_fast(buf: np.ndarray, base: int, length: int, n_frames: int, n_channels: int) -> np.ndarray | None:
-    """The frames if every line and number is regular, else None (nothing is reported from here)."""
+def _read_frames_fast(
+    buf: np.ndarray, base: int, length: int, n_frames: int, n_channels: int
+) -> tuple[np.ndarray, int | None] | None:
+    """The frames and the block offset of the first line after them (None: there is none), if every line and
+    number is regular, else None (nothing is reported from here)."""
     if n_frames * n_channels > (length + 1) // 2:  # each value takes 2 bytes at least: the file ends early
         return None
     values = np.empty(n_frames * n_channels)
     b = buf[base : base + length]
     filled = lines = 0
+    extra_from = None
     lo = 0
     while lo < length:
         hi = min(lo + _WINDOW, length)
@@ -474,6 +545,12 @@ def _read_frames_fast(buf: np.ndarray, base: int, length: int, n_frames: int, n_
         counts = np.diff(np.append(first_token, starts.size))
         counts = counts[counts > 0]
         k = starts.size
+        if lines + counts.size > n_frames:  # more lines than promised: read the first ones, ignore the rest
+            counts = counts[: n_frames - lines]
+            k = int(counts.sum())
+            extra_from = lo + int(starts[k])
+            starts, ends = starts[:k], ends[:k]
+            hi = length
         if (counts != n_channels).any() or filled + k > values.size:
             return None
         if k:
@@ -485,11 +562,13 @@ def _read_frames_fast(buf: np.ndarray, base: int, length: int, n_frames: int, n_
         lo = hi
     if lines != n_frames or filled != values.size:  # (fast-path values are plain decimals: always finite)
         return None
-    return values.reshape(n_frames, n_channels)
+    return values.reshape(n_frames, n_channels), extra_from
 
 
-def _read_frames_checked(buf: np.ndarray, base: int, length: int, header: _Header, path: Path | None) -> np.ndarray:
-    """Like :func:`_read_frames`, in one piece, reporting the first problem in file order."""
+def _read_frames_checked(
+    buf: np.ndarray, base: int, length: int, header: _Header, path: Path | None
+) -> tuple[np.ndarray, int | None]:
+    """Like :func:`_read_frames_fast`, in one piece, reporting the first problem in file order."""
     n_frames, n_channels, first_line = header.n_frames, header.n_channels, header.data_first_line
     b = buf[base : base + length]
     starts, ends = bvh_numbers.token_bounds(b)
@@ -498,6 +577,11 @@ def _read_frames_checked(buf: np.ndarray, base: int, length: int, header: _Heade
     first_token = np.searchsorted(starts, line_starts)
     counts = np.diff(np.append(first_token, starts.size))
     filled = np.flatnonzero(counts)  # block line index of each non-blank line
+    extra_from = None
+    if filled.size > n_frames:  # the lines after the promised ones are ignored, whatever they hold
+        cut = int(first_token[filled[n_frames]])
+        extra_from = int(starts[cut])
+        starts, ends = starts[:cut], ends[:cut]
 
     def line_of(token: int) -> int:
         return first_line + int(np.searchsorted(breaks, starts[token]))
@@ -507,14 +591,6 @@ def _read_frames_checked(buf: np.ndarray, base: int, length: int, header: _Heade
     if wrong.size:
         k = filled[wrong[0]]
         problem = (first_line + int(k), f"Expected {n_channels} values on frame line, got {int(counts[k])}")
-    if filled.size > n_frames:
-        k = filled[n_frames]
-        extra = (
-            first_line + int(k),
-            f"Expected {n_frames} frame lines (Frames: {n_frames}), got more: extra data after the last frame",
-        )
-        problem = extra if problem is None or extra[0] < problem[0] else problem
-
     if starts.size:
         values, slow = _parse_tokens(buf, base, starts, ends)
     else:
@@ -525,9 +601,6 @@ def _read_frames_checked(buf: np.ndarray, base: int, length: int, header: _Heade
         candidate = (line_of(token), message)
         if problem is None or candidate[0] < problem[0]:
             problem = candidate
-    if problem is None and not np.isfinite(values).all():
-        token = int(np.flatnonzero(~np.isfinite(values))[0])
-        problem = (line_of(token), f"Expected a finite number, got {bytes(b[starts[token] : ends[token]]).decode()!r}")
     if problem is not None:
         raise BvhError(problem[1], path=path, line=problem[0])
     if filled.size < n_frames:
@@ -537,7 +610,7 @@ def _read_frames_checked(buf: np.ndarray, base: int, length: int, header: _Heade
             path=path,
             line=first_line + n_lines,
         )
-    return values.reshape(n_frames, n_channels)
+    return values.reshape(n_frames, n_channels), extra_from
 
 
 def _parse_tokens(
@@ -559,19 +632,34 @@ def _read_slow_tokens(
 
     Valid ones (exponents, long numbers) are checked with one regex over all
     of them and converted in bulk; only a failure is looked at token by token.
+    A number is bad when it is not finite or beyond ``MAX_VALUE`` (fast-path
+    values have at most 7 integer digits: always within it).
     """
     index = np.flatnonzero(slow)
     if index.size == 0:
         return None
     words = [bytes(block[s:e]) for s, e in zip(starts[index].tolist(), ends[index].tolist(), strict=True)]
     if _NUMBERS_RE.fullmatch(b"\n".join(words)):
-        values[index] = np.array(words).astype(np.float64)
-        return None
+        read = np.array(words).astype(np.float64)
+        values[index] = read
+        out_of_range = ~(np.abs(read) <= MAX_VALUE)  # also inf ('1e999' reads as inf)
+        if not out_of_range.any():
+            return None
+        first = int(np.argmax(out_of_range))
+        return int(index[first]), _bad_number(words[first], float(read[first]))
     for i, word in zip(index.tolist(), words, strict=True):
         if _NUMBER_RE.fullmatch(word):
-            continue
+            value = float(word)
+            if abs(value) <= MAX_VALUE:
+                continue
+            return i, _bad_number(word, value)
         shown = word.decode("utf-8", "replace")
         if _NONFINITE_RE.fullmatch(word):
             return i, f"Expected a finite number, got {shown!r}"
         return i, f"Expected a number, got {shown!r}"
     raise AssertionError("unreachable: the joined tokens failed the regex but each one passed")
+
+
+def _bad_number(word: bytes, value: float) -> str:
+    """The message for a number token that reads as ``value``, infinite or beyond ``MAX_VALUE``."""
+    return f"{'Expected a finite number' if math.isinf(value) else _TOO_BIG}, got {_show(word.decode())}"

@@ -2,10 +2,8 @@
 
 from __future__ import annotations
 
-import random
 import re
 
-import numpy as np
 import pytest
 
 from retarget.bvh import load_bvh, parse_bvh
@@ -45,13 +43,28 @@ CASES = {
     # missing or malformed HIERARCHY
     "no-hierarchy": (sub("HIERARCHY\n", ""), 1, "Expected HIERARCHY, got 'ROOT Hips'"),
     "hierarchy-misspelt": (sub("HIERARCHY", "HIERARCHIE"), 1, "Expected HIERARCHY, got 'HIERARCHIE'"),
-    "no-root": (sub("ROOT Hips", "JOINT Hips"), 2, "Expected ROOT after HIERARCHY, got 'JOINT Hips'"),
+    "no-root": (sub("ROOT Hips", "BONE Hips"), 2, "Expected ROOT after HIERARCHY, got 'BONE Hips'"),
+    "second-root-as-joint": (  # only the first joint may be written JOINT (with a warning: see test_parse)
+        sub("}\nMOTION", "}\nJOINT Prop\n{\n  OFFSET 0 0 0\n  CHANNELS 1 Xposition\n}\nMOTION"),
+        16,
+        "Expected MOTION after the hierarchy, got 'JOINT Prop'",
+    ),
     "root-without-name": (sub("ROOT Hips", "ROOT"), 2, "Expected a joint name after ROOT, got nothing"),
     "no-open-brace": (sub("ROOT Hips\n{", "ROOT Hips\nOFFSET 0 0 0"), 3, "Expected '{' after ROOT 'Hips', got"),
     "unknown-keyword": (sub("  OFFSET 1 0 0", "  OFSET 1 0 0"), 8, "Expected OFFSET, CHANNELS, JOINT, End Site"),
     "offset-two-numbers": (sub("OFFSET 1 0 0", "OFFSET 1 0"), 8, "Expected 3 numbers after OFFSET, got 2"),
     "offset-not-number": (sub("OFFSET 1 0 0", "OFFSET 1 x 0"), 8, "Expected a number in OFFSET, got 'x'"),
     "offset-nan": (sub("OFFSET 1 0 0", "OFFSET 1 nan 0"), 8, "Expected a number in OFFSET, got 'nan'"),
+    "offset-overflow": (
+        sub("OFFSET 1 0 0", "OFFSET 1 0 -1e999"),
+        8,
+        "Expected a finite number in OFFSET, got '-1e999'",
+    ),
+    "offset-too-big": (
+        sub("OFFSET 1 0 0", "OFFSET 1 0 1.5e12"),
+        8,
+        "Expected a number from -1e+12 to 1e+12 in OFFSET, got '1.5e12'",
+    ),
     "offset-missing": (
         sub("    OFFSET 1 0 0\n", ""),
         9,
@@ -83,6 +96,16 @@ CASES = {
         "Expected 5 channel names after 'CHANNELS 5', got 6",
     ),
     "channel-count-missing": (sub("CHANNELS 3 Zrotation", "CHANNELS Zrotation"), 9, "Expected a channel count"),
+    "channel-count-superscript": (  # fuzz: '²'.isdigit() is True but int('²') raised ValueError
+        sub("CHANNELS 3 Zrotation", "CHANNELS \u00b3 Zrotation"),
+        9,
+        "Expected a channel count after CHANNELS, got '\u00b3'",
+    ),
+    "channel-count-arabic-digits": (
+        sub("CHANNELS 3 Zrotation", "CHANNELS \u0663 Zrotation"),
+        9,
+        "Expected a channel count after CHANNELS, got '\u0663'",
+    ),
     "unknown-channel": (
         sub("Zrotation Xrotation Yrotation\n    End", "Zrotation Wrotation Yrotation\n    End"),
         9,
@@ -99,15 +122,34 @@ CASES = {
     "no-frames-line": (sub("Frames: 2\n", ""), 17, "Expected 'Frames: <count>' after MOTION, got 'Frame Time:"),
     "frames-not-integer": (sub("Frames: 2", "Frames: 2.5"), 17, "Expected a whole number of frames, got '2.5'"),
     "frames-negative": (sub("Frames: 2", "Frames: -1"), 17, "Expected a whole number of frames, got '-1'"),
+    "frames-superscript": (sub("Frames: 2", "Frames: \u00b2"), 17, "Expected a whole number of frames, got '\u00b2'"),
+    "frames-arabic-digits": (
+        sub("Frames: 2", "Frames: \u0662"),
+        17,
+        "Expected a whole number of frames, got '\u0662'",
+    ),
     "no-frame-time": (sub("Frame Time: 0.0333333\n", ""), 18, "Expected 'Frame Time: <seconds>' after Frames"),
     "frame-time-zero": (sub("0.0333333", "0"), 18, "Expected a positive frame time in seconds, got '0'"),
     "frame-time-word": (sub("0.0333333", "fast"), 18, "Expected a positive frame time in seconds, got 'fast'"),
+    "frame-time-huge": (  # fuzz: the duration was inf
+        sub("0.0333333", "1e308"),
+        18,
+        "Expected a frame time from 1e-06 to 1e+06 seconds, got '1e308'",
+    ),
+    "frame-time-tiny": (sub("0.0333333", "1e-310"), 18, "Expected a frame time from 1e-06 to 1e+06 seconds"),
     # values
     "non-numeric": (sub("9 8 7 6 5", "9 8 seven 6 5"), 20, "Expected a number, got 'seven'"),
     "comma-decimal": (sub("1 2 3 4 5", "1 2,5 3 4 5"), 19, "Expected a number, got '2,5'"),
     "nan-value": (sub("9 8 7 6 5", "9 8 nan 6 5"), 20, "Expected a finite number, got 'nan'"),
     "inf-value": (sub("1 2 3 4 5", "1 2 -inf 4 5"), 19, "Expected a finite number, got '-inf'"),
     "overflow-value": (sub("1 2 3 4 5", "1 2 1e999 4 5"), 19, "Expected a finite number, got '1e999'"),
+    "overflow-long-integer": (sub("9 8 7 6 5", "9 8 " + "9" * 400 + " 6 5"), 20, "Expected a finite number, got '999"),
+    "value-too-big": (  # fuzz: two such values summed to inf in FK
+        sub("9 8 7 6 5", "9 8 -1e308 6 5"),
+        20,
+        "Expected a number from -1e+12 to 1e+12, got '-1e308'",
+    ),
+    "value-too-big-plain": (sub("1 2 3 4 5", "1 2 3 4000000000000.5 5"), 19, "got '4000000000000.5'"),
     # frame lines
     "too-few-values": (sub("1 2 3 4 5 6 7 8 9", "1 2 3 4 5 6 7 8"), 19, "Expected 9 values on frame line, got 8"),
     "too-many-values": (sub("9 8 7 6 5 4 3 2 1", "9 8 7 6 5 4 3 2 1 0"), 20, "Expected 9 values on frame line, got 10"),
@@ -121,9 +163,7 @@ CASES = {
         21,
         "Expected 3 frame lines (Frames: 3), got 2",
     ),
-    "extra-lines": (GOOD + "0 0 0 0 0 0 0 0 0\n", 21, "Expected 2 frame lines (Frames: 2), got more"),
-    "extra-short-line": (GOOD + "0 0\n", 21, "Expected 2 frame lines (Frames: 2), got more"),
-    "frames-zero-with-data": (sub("Frames: 2", "Frames: 0"), 19, "Expected 0 frame lines (Frames: 0), got more"),
+    "last-line-short": (sub("Frames: 2", "Frames: 3") + "1 2\n", 21, "Expected 9 values on frame line, got 2"),
     # empty and binary
     "empty": ("", 1, "Expected a BVH file starting with HIERARCHY, got an empty file"),
     "whitespace-only": ("  \n\t\n", 1, "got an empty file"),
@@ -149,6 +189,15 @@ def test_first_problem_in_file_order_wins():
     assert info.value.line == 19
     text = sub("1 2 3 4 5", "1 2 x 4 5").replace("9 8 7 6 5 4 3 2 1", "9 8 7")
     with pytest.raises(BvhError, match="Expected a number, got 'x'") as info:
+        parse_bvh(text)
+    assert info.value.line == 19
+    # a number out of range before a word that is not a number (each checked on its own when one is bad)
+    text = sub("1 2 3 4 5", "1 2 1e999 4 5").replace("9 8 7 6 5", "9 8 x 6 5")
+    with pytest.raises(BvhError, match="Expected a finite number, got '1e999'") as info:
+        parse_bvh(text)
+    assert info.value.line == 19
+    text = sub("1 2 3 4 5", "1 2 3 4e15 5").replace("9 8 7 6 5", "9 8 x 6 5")
+    with pytest.raises(BvhError, match="Expected a number from -1e.12 to 1e.12, got '4e15'") as info:
         parse_bvh(text)
     assert info.value.line == 19
 
@@ -186,36 +235,3 @@ def test_every_truncation_is_an_error_never_partial_data():
     for cut in range(len(GOOD) - 2):  # GOOD[:-1] only lacks the final newline, which is fine
         with pytest.raises(BvhError):
             parse_bvh(GOOD[:cut])
-
-
-@pytest.mark.parametrize("seed", range(4))
-def test_mutated_files_give_motion_or_bvh_error_only(seed):
-    rng = random.Random(seed)
-    alphabet = "0123456789.-+eE \t\n\r{}:abcHIERARCHYMOTIONJOINTEndSite\x00\xe9"
-    for _ in range(150):
-        text = GOOD
-        for _ in range(rng.randint(1, 4)):
-            i = rng.randrange(len(text))
-            kind = rng.randrange(5)
-            if kind == 0:
-                text = text[:i] + text[i + 1 :]
-            elif kind == 1:
-                text = text[:i] + rng.choice(alphabet) + text[i:]
-            elif kind == 2:
-                lines = text.split("\n")
-                k = rng.randrange(len(lines))
-                lines.insert(k, lines[rng.randrange(len(lines))])
-                text = "\n".join(lines)
-            elif kind == 3:
-                lines = text.split("\n")
-                del lines[rng.randrange(len(lines))]
-                text = "\n".join(lines)
-            else:
-                text = text[:i] + text[i:].replace(" ", "\t", 1)
-        try:
-            motion = parse_bvh(text)
-        except BvhError as exc:
-            assert exc.line is None or 1 <= exc.line <= text.count("\n") + 2, (exc, text)
-            continue
-        assert motion.channels.shape == (motion.n_frames, sum(len(c.names) for c in motion.layout))
-        assert np.isfinite(motion.positions()).all()

@@ -8,7 +8,7 @@ import pytest
 from retarget.bvh import DEMO_CLIP, load_bvh, parse_bvh
 from retarget.bvh import numbers as bvh_numbers
 from retarget.errors import BvhError
-from tests.helpers import POS_XYZ, REPO, ROT_ZXY, J, bvh_text, n_channels
+from tests.helpers import POS_XYZ, REPO, ROT_ZXY, J, arm_skeleton, bvh_text, n_channels
 
 
 def small() -> J:
@@ -282,3 +282,150 @@ def test_regular_files_take_the_windowed_path(monkeypatch):
     m = parse_bvh(bvh_text(small(), frames, fmt="{:.5f}").replace("\n", "  \n"))
     assert m.n_frames == 2000
     assert load_bvh(DEMO_CLIP).n_frames == 630
+
+
+# ------------------------------------------------------------------------------- lenient, with a warning
+
+LOGGER = "retarget.bvh.parse"
+N_LINES = bvh_text(small(), FRAMES).count("\n")  # lines of the small file with its 2 frames
+
+
+def _warnings(caplog) -> list[str]:
+    return [r.getMessage() for r in caplog.records if r.name == LOGGER and r.levelname == "WARNING"]
+
+
+EXTRA = {
+    "one-line": "0 0 0 0 0 0 0 0 0 0 0 0\n",
+    "short-and-garbage": "0 0\njunk nan ,\n\n1 2 3\n",
+    "no-final-newline": "1 2 3 4 5 6 7 8 9 10 11 12",
+    "blank-lines-between": "\n\n0 0 0 0 0 0 0 0 0 0 0 0\n\n",
+}
+
+
+@pytest.mark.parametrize("extra", EXTRA.values(), ids=EXTRA.keys())
+def test_lines_after_the_frames_count_are_ignored_with_a_warning(caplog, extra):
+    text = bvh_text(small(), FRAMES)
+    n_ignored = sum(1 for line in extra.splitlines() if line.strip())
+    first = text.count("\n") + 1 + (len(extra) - len(extra.lstrip("\n")))  # the first ignored line
+    m = parse_bvh(text + extra, path="x.bvh")
+    np.testing.assert_array_equal(m.channels, FRAMES)
+    plural = "s" if n_ignored > 1 else ""
+    assert _warnings(caplog) == [f"x.bvh:{first}: Ignored {n_ignored} line{plural} after the 2 frames of 'Frames: 2'"]
+
+
+@pytest.mark.parametrize("newline", ["\r\n", "\r"], ids=["crlf", "cr"])
+def test_extra_lines_with_other_line_ends(caplog, newline):
+    text = bvh_text(small(), FRAMES, newline=newline) + newline.join(["1 2", "3 4", ""])
+    m = parse_bvh(text, path="x.bvh")
+    np.testing.assert_array_equal(m.channels, FRAMES)
+    assert _warnings(caplog) == [f"x.bvh:{N_LINES + 1}: Ignored 2 lines after the 2 frames of 'Frames: 2'"]
+
+
+def test_extra_lines_after_frames_with_exponents(caplog):
+    # exponents take the one-piece checked path: it ignores the extra lines the same way
+    m = parse_bvh(bvh_text(small(), FRAMES, fmt="{:.6e}") + "nan\n", path="x.bvh")
+    np.testing.assert_array_equal(m.channels, FRAMES)
+    assert _warnings(caplog) == [f"x.bvh:{N_LINES + 1}: Ignored 1 line after the 2 frames of 'Frames: 2'"]
+
+
+def test_extra_lines_in_a_long_file_take_the_windowed_path(caplog, monkeypatch):
+    import retarget.bvh.parse as bvh_module
+
+    def fail(*args, **kwargs):
+        raise AssertionError("the one-piece checked path ran for a regular file with extra lines")
+
+    monkeypatch.setattr(bvh_module, "_read_frames_checked", fail)
+    frames = np.random.default_rng(1).uniform(-100, 100, size=(3000, 12)).round(5)
+    text = bvh_text(small(), frames, fmt="{:.5f}")
+    for n in (2999, 1500, 3, 0):  # the ignored lines start in the last window, a middle one, the first
+        m = parse_bvh(text.replace("Frames: 3000", f"Frames: {n}"), path="x.bvh")
+        np.testing.assert_array_equal(m.channels, frames[:n])
+        lines = f"{3000 - n} line{'s' * (n != 2999)}"
+        assert (
+            _warnings(caplog)[-1] == f"x.bvh:{N_LINES - 1 + n}: Ignored {lines} after the {n} frames of 'Frames: {n}'"
+        )
+
+
+def test_trailing_blank_lines_are_not_extra_lines(caplog):
+    m = parse_bvh(bvh_text(small(), FRAMES) + "\n \t\n\r\n", path="x.bvh")
+    assert m.n_frames == 2 and _warnings(caplog) == []
+
+
+def test_fewer_lines_than_promised_is_still_an_error(caplog):
+    with pytest.raises(
+        BvhError, match=rf"x\.bvh:{N_LINES + 1}: Expected 3 frame lines \(Frames: 3\), got 2: the file ends early"
+    ):
+        parse_bvh(bvh_text(small(), FRAMES, n_frames=3), path="x.bvh")
+    assert _warnings(caplog) == []
+
+
+def test_root_written_as_joint_is_read_with_a_warning(caplog):
+    text = bvh_text(small(), FRAMES).replace("ROOT Hips", "JOINT Hips")
+    m = parse_bvh(text, path="x.bvh")
+    base = parse_bvh(bvh_text(small(), FRAMES))
+    assert m.joint_names == base.joint_names and m.parents.tolist() == [-1, 0, 1]
+    np.testing.assert_array_equal(m.positions(), base.positions())
+    assert _warnings(caplog) == ["x.bvh:2: Read 'JOINT Hips' as the ROOT (the hierarchy's first joint)"]
+    lower = text.replace("JOINT Hips\n{", "joint Hips {")  # any case, brace on the line: as ROOT takes it
+    assert parse_bvh(lower).joint_names == base.joint_names
+
+
+def test_root_written_as_joint_errors_name_the_joint():
+    text = bvh_text(small(), FRAMES).replace("ROOT Hips", "JOINT Hips").replace("OFFSET 0 90 0", "OFFSET 0 90")
+    with pytest.raises(BvhError, match=r"<bvh>:4: Expected 3 numbers after OFFSET, got 2"):
+        parse_bvh(text)
+    with pytest.raises(BvhError, match=r"<bvh>:2: Expected a joint name after JOINT, got nothing"):
+        parse_bvh(bvh_text(small(), FRAMES).replace("ROOT Hips", "JOINT"))
+
+
+def test_warnings_are_logged_once_when_the_file_is_read_again(caplog):
+    # CRs met only in the frames make the parser read the whole file again, normalised
+    text = _after_motion(bvh_text(small(), FRAMES).replace("ROOT", "JOINT"), lambda rest: rest.replace("\n", "\r"))
+    m = parse_bvh(text + "1 2\r", path="x.bvh")
+    np.testing.assert_array_equal(m.channels, FRAMES)
+    assert _warnings(caplog) == [
+        "x.bvh:2: Read 'JOINT Hips' as the ROOT (the hierarchy's first joint)",
+        f"x.bvh:{N_LINES + 1}: Ignored 1 line after the 2 frames of 'Frames: 2'",
+    ]
+    # a header longer than the first bytes tried is read twice too
+    root = J("Hips", (0, 0, 0), POS_XYZ, children=[J(f"joint_{k:05d}", (0, 1, 0), ROT_ZXY) for k in range(1200)])
+    frames = np.zeros((2, n_channels(root)))
+    caplog.clear()
+    m = parse_bvh(bvh_text(root, frames).replace("ROOT Hips", "JOINT Hips"), path="y.bvh")
+    assert m.n_joints == 1201
+    assert _warnings(caplog) == ["y.bvh:2: Read 'JOINT Hips' as the ROOT (the hierarchy's first joint)"]
+
+
+def test_no_warning_for_a_regular_file(caplog):
+    parse_bvh(bvh_text(small(), FRAMES))
+    load_bvh(DEMO_CLIP)
+    assert _warnings(caplog) == []
+
+
+# -------------------------------------------------------------------------------------- Frames: 0
+
+
+@pytest.mark.filterwarnings("error::RuntimeWarning")
+@pytest.mark.parametrize("extra", ["", "1 2 3\n"], ids=["template", "with-data"])
+def test_frames_zero_gives_an_empty_motion_that_works(caplog, tmp_path, extra):
+    """Perception Neuron's template files: a skeleton, ``Frames: 0``, and sometimes frame lines all the same."""
+    names = {"clavicle": "{side}Shoulder", "upper": "{side}Arm", "fore": "{side}ForeArm", "hand": "{side}Hand"}
+    root = arm_skeleton(names | {"left": "Left", "right": "Right"})
+    path = tmp_path / "template.bvh"
+    path.write_text(bvh_text(root, np.zeros((0, n_channels(root)))) + extra)
+    m = load_bvh(path)
+    n = m.n_joints
+    assert (m.n_frames, m.duration, m.channels.shape) == (0, 0.0, (0, n_channels(root)))
+    assert m.positions().shape == (0, n, 3)
+    assert m.end_site_positions().shape == (0, len(m.end_sites), 3)
+    rotations, positions = m.global_transforms()
+    assert rotations.shape == (0, n, 3, 3) and positions.shape == (0, n, 3)
+    arm = m.arm_points("right")
+    assert arm.names == ("RightArm", "RightForeArm", "RightHand") and arm.points.shape == (0, 3, 3)
+    assert np.isfinite(arm.bone_lengths).all()  # (what they are without frames is motion.py's business)
+    assert m.scaled(0.01).positions().shape == (0, n, 3)
+    assert m.guess_units().unit == "cm" and m.rest_positions().shape == (n, 3)
+    assert repr(m) == f"<Motion 'template.bvh': {n} joints, 0 frames at 30 fps>"
+    first = path.read_text().count("\n")  # the last line
+    expected = [f"{path}:{first}: Ignored 1 line after the 0 frames of 'Frames: 0'"]
+    assert _warnings(caplog) == (expected if extra else [])
