@@ -420,3 +420,232 @@ def urdf_text(joints, links=None, name="robot") -> str:
         out.append("  </joint>")
     out.append("</robot>\n")
     return "\n".join(out)
+
+
+# ------------------------------------------------------------------ generated skeletons for arm-chain detection
+#: Arm naming conventions: role -> the word the side marker goes with (see ``retarget.bvh.skeleton``'s table).
+ARM_WORDS: dict[str, dict[str, str]] = {
+    "cmu": {"clavicle": "Shoulder", "upper": "Arm", "fore": "ForeArm", "hand": "Hand"},
+    "collar": {"clavicle": "Collar", "upper": "Shoulder", "fore": "Elbow", "hand": "Wrist"},
+    "biped": {"clavicle": "Clavicle", "upper": "UpperArm", "fore": "Forearm", "hand": "Hand"},
+    "poser": {"clavicle": "Collar", "upper": "Shldr", "fore": "ForeArm", "hand": "Hand"},
+    "genesis": {"clavicle": "Collar", "upper": "ShldrBend", "fore": "ForearmBend", "hand": "Hand"},
+    "mhx": {"clavicle": "Clavicle", "upper": "UpArm", "fore": "LoArm", "hand": "Hand"},
+    "optitrack": {"clavicle": "Shoulder", "upper": "UArm", "fore": "FArm", "hand": "Hand"},
+    "rigify": {"clavicle": "shoulder", "upper": "upper_arm", "fore": "forearm", "hand": "hand"},
+    "makehuman": {"clavicle": "clavicle", "upper": "upperarm01", "fore": "lowerarm01", "hand": "wrist"},
+    "unreal": {"clavicle": "clavicle", "upper": "upperarm", "fore": "lowerarm", "hand": "hand"},
+    "asf": {"clavicle": "clavicle", "upper": "humerus", "fore": "radius", "hand": "wrist"},
+}
+#: How each convention names the twist bones of the upper arm and the forearm (``{}``: the suffix).
+TWIST_STEMS: dict[str, tuple[str, str]] = {
+    "genesis": ("Shldr{}", "Forearm{}"),
+    "makehuman": ("upperarm0{}", "lowerarm0{}"),  # numbered segments: upperarm02, upperarm03
+}
+TWIST_SUFFIXES = ("Twist", "Roll", "_twist_01", "Twist1")
+#: Side styles: Left/Right before or after the word, a capital or small letter before it, a separated suffix,
+#: or Biped's " L " (after a "Bip01 " prefix).
+SIDE_STYLES = ("Word", "WordAfter", "L", "l", ".L", "_L", " L ")
+PREFIXES = ("", "mixamorig:", "Skeleton1_", "Bip01 ", "DEF-")
+CASES = ("keep", "lower", "upper")
+
+
+@dataclass(frozen=True)
+class ArmNaming:
+    """How a generated skeleton spells its joints: prefix, convention, side style, separator, case, twist suffix."""
+
+    prefix: str = ""
+    convention: str = "cmu"
+    side_style: str = "Word"
+    separator: str = ""  # between a side word and the role word ("Left_Arm")
+    case: str = "keep"
+    twist: str = "Twist"
+
+    def name(self, word: str, side: str | None) -> str:
+        """``word`` with this naming's prefix, side marker and case (no side marker when ``side`` is None)."""
+        if side is None:
+            text = word
+        else:
+            long, short = ("Left", "L") if side == "left" else ("Right", "R")
+            text = {
+                "Word": long + self.separator + word,
+                "WordAfter": word + self.separator + long,
+                "L": short + word[:1].upper() + word[1:],
+                "l": short.lower() + word[:1].upper() + word[1:],
+                ".L": word + "." + short,
+                "_L": word + "_" + short,
+                " L ": short + " " + word,
+            }[self.side_style]
+        text = self.prefix + text
+        return text.lower() if self.case == "lower" else text.upper() if self.case == "upper" else text
+
+    def role(self, role: str, side: str) -> str:
+        """The joint name of arm ``role`` (``clavicle``, ``upper``, ``fore``, ``hand``) on ``side``."""
+        return self.name(ARM_WORDS[self.convention][role], side)
+
+    def twist_name(self, role: str, side: str, k: int) -> str:
+        """The ``k``-th (0-based) twist bone after the ``upper`` or ``fore`` joint."""
+        stems = TWIST_STEMS.get(self.convention)
+        if self.convention == "makehuman" and stems:
+            return self.name(stems[role == "fore"].format(k + 2), side)
+        word = stems[role == "fore"] if stems else ARM_WORDS[self.convention][role] + "{}"
+        return self.name(word.format(self.twist + ("" if k == 0 else str(k + 1))), side)
+
+
+def random_arm_naming(rng: random.Random) -> ArmNaming:
+    """A seeded random :class:`ArmNaming`."""
+    style = rng.choice(SIDE_STYLES)
+    return ArmNaming(
+        prefix="Bip01 " if style == " L " and rng.random() < 0.7 else rng.choice(PREFIXES),
+        convention=rng.choice(sorted(ARM_WORDS)),
+        side_style=style,
+        separator=rng.choice(("", "_", ".")) if style in ("Word", "WordAfter") else "",
+        case=rng.choice(CASES),
+        twist=rng.choice(TWIST_SUFFIXES),
+    )
+
+
+def named_humanoid(
+    naming: ArmNaming,
+    *,
+    upper_twists: int = 0,
+    fore_twists: int = 0,
+    fingers: bool = False,
+    wrist_end_site: bool = False,
+    clavicle: bool = True,
+) -> J:
+    """A 170-unit humanoid (T pose, Y up, facing +Z, cm) whose joints are named by ``naming``.
+
+    Upper arm 28 and forearm 25 units, split evenly over ``upper_twists`` / ``fore_twists`` twist bones after
+    the joint; ``fingers`` adds five three-bone fingers to each hand; ``wrist_end_site`` ends the forearm in
+    an End Site instead of a hand joint (no twist bones after the forearm then).  Legs and spine are named with
+    the same prefix, side style and case: Hips, Spine, Chest, Neck, Head, UpLeg, Leg, Foot, Toe.
+    """
+
+    def twisted(role: str, side: str, s: float, length: float, n: int, below: J) -> J:
+        """The ``role`` joint, then ``n`` twist bones, then ``below``, ``length`` units apart in equal steps."""
+        step = (s * length / (n + 1), 0.0, 0.0)
+        below.offset = step
+        joint = below
+        for k in reversed(range(n)):
+            joint = J(naming.twist_name(role, side, k), step, children=[joint])
+        return J(naming.role(role, side), (0, 0, 0), children=[joint])
+
+    def arm(side: str, s: float) -> J:
+        if wrist_end_site:
+            fore = J(naming.role("fore", side), (0, 0, 0), end=(s * 25, 0, 0))
+        else:
+            hand = J(naming.role("hand", side), (0, 0, 0), end=None if fingers else (s * 8, 0, 0))
+            if fingers:
+                for k, finger in enumerate(("Thumb", "Index", "Middle", "Ring", "Pinky")):
+                    tip = J(naming.name(f"Hand{finger}3", side), (s * 2, 0, 0), end=(s * 2, 0, 0))
+                    mid = J(naming.name(f"Hand{finger}2", side), (s * 3, 0, 0), children=[tip])
+                    hand.children.append(J(naming.name(f"Hand{finger}1", side), (s * 8, 0, 2 - k), children=[mid]))
+            fore = twisted("fore", side, s, 25.0, fore_twists, hand)
+        upper = twisted("upper", side, s, 28.0, upper_twists, fore)
+        upper.offset = (s * 15, 2, 0)
+        if not clavicle:
+            return upper
+        return J(naming.role("clavicle", side), (s * 2, 15, 0), children=[upper])
+
+    def leg(side: str, s: float) -> J:
+        toe = J(naming.name("Toe", side), (0, -4, 12), end=(0, 0, 5))
+        foot = J(naming.name("Foot", side), (0, -43, 0), children=[toe])
+        knee = J(naming.name("Leg", side), (0, -43, 0), children=[foot])
+        return J(naming.name("UpLeg", side), (s * 9, -4, 0), children=[knee])
+
+    head = J(naming.name("Neck", None), (0, 20, 0), children=[J(naming.name("Head", None), (0, 10, 0), end=(0, 20, 0))])
+    chest = J(naming.name("Chest", None), (0, 15, 0), children=[head, arm("left", 1.0), arm("right", -1.0)])
+    spine = J(naming.name("Spine", None), (0, 15, 0), children=[chest])
+    channels = ("Xposition", "Yposition", "Zposition", *ROT_ZXY)
+    return J(naming.name("Hips", None), (0, 98, 0), channels, children=[spine, leg("left", 1.0), leg("right", -1.0)])
+
+
+def expected_arm(naming: ArmNaming, side: str, *, wrist_end_site: bool = False) -> tuple[str, str, str]:
+    """The shoulder, elbow and wrist names :func:`named_humanoid` gives the ``side`` arm."""
+    fore = naming.role("fore", side)
+    wrist = fore + "/End Site" if wrist_end_site else naming.role("hand", side)
+    return naming.role("upper", side), fore, wrist
+
+
+def renamed(root: J, fmt: str = "bone{:02d}") -> J:
+    """``root`` with every joint renamed ``fmt.format(k)`` in file order (names that say nothing); in place."""
+    for k, joint in enumerate(joints_in_order(root)):
+        joint.name = fmt.format(k)
+    return root
+
+
+def lafan_like(n_frames: int = 0) -> tuple[J, np.ndarray]:
+    """A CMU-named 180-cm humanoid whose zero-rotation pose lays every bone along +X (LAFAN's rest pose).
+
+    Left is +Z in the rest pose; ``n_frames`` frames stand it upright (Y up): the root turned 90 degrees about
+    Z, the legs turned back down, the clavicles out to the sides.  Returns the root and the frames
+    ``(n_frames, n_channels)``.
+    """
+
+    def arm(side: str, z: float) -> J:
+        hand = J(f"{side}Hand", (25, 0, 0), end=(18, 0, 0))
+        fore = J(f"{side}ForeArm", (30, 0, 0), children=[hand])
+        upper = J(f"{side}Arm", (11, 0, 0), children=[fore])
+        return J(f"{side}Shoulder", (20, 0, z), children=[upper])
+
+    def leg(side: str, z: float) -> J:
+        toe = J(f"{side}Toe", (15, 0, 0), end=(5, 0, 0))
+        foot = J(f"{side}Foot", (42, 0, 0), children=[toe])
+        return J(f"{side}UpLeg", (0, 0, z), children=[J(f"{side}Leg", (43, 0, 0), children=[foot])])
+
+    head = J("Neck", (25, 0, 0), children=[J("Head", (12, 0, 0), end=(18, 0, 0))])
+    chest = J("Spine2", (12, 0, 0), children=[head, arm("Left", 6.0), arm("Right", -6.0)])
+    spine = J("Spine", (8, 0, 0), children=[J("Spine1", (12, 0, 0), children=[chest])])
+    channels = ("Xposition", "Yposition", "Zposition", *ROT_ZXY)
+    root = J("Hips", (0, 0, 0), channels, children=[leg("Left", 9.0), leg("Right", -9.0), spine])
+    names = [j.name for j in joints_in_order(root)]
+    frames = np.zeros((n_frames, n_channels(root)))
+    frames[:, 1] = 105.0  # hips height, cm
+    frames[:, 3] = 90.0  # root Zrotation: +X (the spine) up
+    for leg_name in ("LeftUpLeg", "RightUpLeg"):
+        frames[:, 6 + 3 * (names.index(leg_name) - 1)] = 180.0  # Zrotation: back down
+    for clavicle, yaw in (("LeftShoulder", -90.0), ("RightShoulder", 90.0)):
+        frames[:, 6 + 3 * (names.index(clavicle) - 1) + 2] = yaw  # Yrotation: out to +Z / -Z
+    return root, frames
+
+
+def with_face(root: J) -> J:
+    """``root`` with a jaw, a three-bone tongue, a lower lip and two eyes under its ``Head`` joint; in place.
+
+    The head then has three children, deeper than the chest: the joint a "deepest branching" rule takes."""
+    head = next(j for j in joints_in_order(root) if j.name.lower().endswith("head"))
+    tip = J("Tongue3", (0, 0, 2), end=(0, 0, 1))
+    tongue = J("Tongue1", (0, -3, 4), children=[J("Tongue2", (0, 0, 2), children=[tip])])
+    jaw = J("Jaw", (0, -2, 2), children=[tongue, J("LowerLip", (0, -1, 5), end=(0, 0, 1))])
+    head.children = [jaw, J("LeftEye", (3, 6, 8), end=(0, 0, 1)), J("RightEye", (-3, 6, 8), end=(0, 0, 1))]
+    return root
+
+
+def left_hand_rig() -> J:
+    """A left hand alone (a glove's rig): ``LeftHand`` at x = 40 with five three-bone fingers along +X."""
+    fingers = []
+    for k, finger in enumerate(("Thumb", "Index", "Middle", "Ring", "Pinky")):
+        tip = J(f"LeftHand{finger}3", (2, 0, 0), end=(2, 0, 0))
+        mid = J(f"LeftHand{finger}2", (3, 0, 0), children=[tip])
+        fingers.append(J(f"LeftHand{finger}1", (8, 0, 2 - k), children=[mid]))
+    return J("LeftHand", (40, 140, 0), ("Xposition", "Yposition", "Zposition", *ROT_ZXY), children=fingers)
+
+
+def staggered_arm_rig(leg_prefix: str = "bone") -> J:
+    """Arms named ``Arm_L_01 > Arm_L_02 > Arm_L_03`` branching off two different spine joints (Spine1 the left,
+    Spine2 the right), legs named ``{leg_prefix}1a > 1b > 1c``: the hips are the only joint with three children."""
+
+    def arm(s: str, x: float) -> J:
+        hand = J(f"Arm_{s}_03", (x * 25, 0, 0), end=(x * 8, 0, 0))
+        return J(f"Arm_{s}_01", (x * 17, 12, 0), children=[J(f"Arm_{s}_02", (x * 28, 0, 0), children=[hand])])
+
+    def leg(k: int, x: float) -> J:
+        foot = J(f"{leg_prefix}{k}c", (0, -43, 0), end=(0, -4, 12))
+        return J(f"{leg_prefix}{k}a", (x * 9, -4, 0), children=[J(f"{leg_prefix}{k}b", (0, -43, 0), children=[foot])])
+
+    neck = J("Neck", (0, 10, 0), children=[J("Head", (0, 10, 0), end=(0, 20, 0))])
+    spine2 = J("Spine2", (0, 5, 0), children=[neck, arm("R", -1)])
+    spine1 = J("Spine1", (0, 25, 0), children=[spine2, arm("L", 1)])
+    channels = ("Xposition", "Yposition", "Zposition", *ROT_ZXY)
+    return J("Hips", (0, 98, 0), channels, children=[spine1, leg(1, 1), leg(2, -1)])

@@ -26,13 +26,20 @@ Example::
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import logging
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 import retarget.bvh.skeleton as skeleton
 from retarget.bvh.fk import Pose, forward_kinematics
+from retarget.errors import BvhError
+
+log = logging.getLogger(__name__)
+
+#: ``guess_units`` measures the skeleton's extent on at most this many frames, evenly spaced.
+UNITS_SAMPLE_FRAMES = 64
 
 
 @dataclass(frozen=True)
@@ -74,7 +81,11 @@ class ArmChain:
     ``names``: the joints used; an End Site wrist is named ``"forearm.L/End Site"``.
     ``indices``: joint indices of shoulder and elbow, and of the wrist joint
     (or, when ``wrist_is_end_site``, the index into ``Motion.end_sites``).
+    ``rest_points``: ``(3, 3)`` the same three points in the rest pose (OFFSETs alone).
     ``bone_lengths``: median upper-arm and forearm lengths.
+    ``detail``: how the chain was found; ``rejected``: the other candidates and why
+    they were not chosen; ``warnings``: unusual bone lengths (see
+    :func:`~retarget.bvh.skeleton.check_arm_lengths`).
     """
 
     side: str
@@ -83,12 +94,22 @@ class ArmChain:
     wrist_is_end_site: bool
     points: np.ndarray = field(repr=False, compare=False)
     method: str = "names"  #: how the joints were chosen: "names", "structure" or "explicit"
+    rest_points: np.ndarray | None = field(default=None, repr=False, compare=False)
+    rejected: tuple[skeleton.Rejected, ...] = field(default=(), repr=False, compare=False)
+    detail: str = field(default="", repr=False, compare=False)
+    warnings: tuple[str, ...] = field(default=(), repr=False, compare=False)
+
+    @property
+    def lengths_from(self) -> str:
+        """Where :attr:`bone_lengths` come from: ``"frames"``, or ``"rest pose"`` for a clip without frames."""
+        return "rest pose" if self.points.shape[0] == 0 and self.rest_points is not None else "frames"
 
     @property
     def bone_lengths(self) -> tuple[float, float]:
-        """Median upper-arm and forearm lengths over the clip (file units)."""
-        upper = np.linalg.norm(self.points[:, 1] - self.points[:, 0], axis=-1)
-        fore = np.linalg.norm(self.points[:, 2] - self.points[:, 1], axis=-1)
+        """Median upper-arm and forearm lengths over the clip (file units); the rest pose's without frames."""
+        pts = self.points if self.lengths_from == "frames" else np.asarray(self.rest_points)[None]
+        upper = np.linalg.norm(pts[:, 1] - pts[:, 0], axis=-1)
+        fore = np.linalg.norm(pts[:, 2] - pts[:, 1], axis=-1)
         if upper.size == 0:
             return 0.0, 0.0
         return float(np.median(upper)), float(np.median(fore))
@@ -159,6 +180,8 @@ class Motion:
         self.frame_time = float(frame_time)
         self.path = path
         self._cached_pose: Pose | None = None
+        self._cached_lengths: np.ndarray | None = None
+        self._cached_height: float | None = None
 
     # ------------------------------------------------------------------------------------------ info
     @property
@@ -207,9 +230,82 @@ class Motion:
         rest = self.rest_positions()
         return np.array([rest[e.parent] + np.asarray(e.offset) for e in self.end_sites]).reshape(-1, 3)
 
+    def bone_lengths(self) -> np.ndarray:
+        """``(n_joints,)`` float64 each joint's distance from its parent, file units; 0 for a root.
+
+        A joint with position channels measures the median over the frames of its
+        translation (the OFFSET with the channels in place of the components they
+        name); the others, and every joint of a clip without frames, the OFFSET's
+        length.  Computed once, read-only.
+
+        >>> from retarget.bvh.parse import DEMO_CLIP, load_bvh
+        >>> motion = load_bvh(DEMO_CLIP)
+        >>> lengths = motion.bone_lengths()
+        >>> lengths.shape, float(lengths[motion.joint_index("RightForeArm")])  # upper arm, cm
+        ((21,), 29.0)
+        >>> round(motion.skeleton_height()), motion.guess_units().basis   # the rest pose is upright: 169 cm
+        (174, 'rest pose')
+        """
+        if self._cached_lengths is None:
+            lengths = np.linalg.norm(self.offsets, axis=1)
+            for j, lay in enumerate(self.layout):
+                columns = lay.columns("position")
+                if columns and self.parents[j] >= 0 and self.n_frames:
+                    t = np.repeat(self.offsets[j][None], self.n_frames, axis=0)
+                    for axis, column in zip(lay.position_axes, columns, strict=True):
+                        t[:, "XYZ".index(axis)] = self.channels[:, column]
+                    lengths[j] = float(np.median(np.linalg.norm(t, axis=1)))
+            lengths[self.parents < 0] = 0.0
+            self._cached_lengths = _readonly(lengths)
+        return self._cached_lengths
+
+    def skeleton_height(self) -> float:
+        """The standing height from :meth:`bone_lengths`, file units; pose-independent.
+
+        See :func:`~retarget.bvh.skeleton.height_from_bones`; the arm checks and :meth:`guess_units`
+        measure against it.
+        """
+        if self._cached_height is None:
+            self._cached_height = skeleton.height_from_bones(
+                self.parents,
+                self.bone_lengths(),
+                [e.parent for e in self.end_sites],
+                [float(np.linalg.norm(e.offset)) for e in self.end_sites],
+            )
+        return self._cached_height
+
     def guess_units(self) -> skeleton.UnitsGuess:
-        """The length unit suggested by the rest-pose height (see :func:`retarget.bvh.skeleton.guess_units`)."""
-        return skeleton.guess_units(np.vstack([self.rest_positions(), self.rest_end_site_positions()]))
+        """The length unit suggested by the skeleton's height (see :func:`retarget.bvh.skeleton.guess_units`).
+
+        The height is the rest pose's extent when that agrees with :meth:`skeleton_height` (an upright rest
+        pose), else the median extent over up to 64 evenly spaced frames when that agrees, else
+        :meth:`skeleton_height` itself; ``basis`` says which.
+        """
+        rest = np.vstack([self.rest_positions(), self.rest_end_site_positions()])
+        return skeleton.guess_units(rest, bone_height=self.skeleton_height(), frames=self._sampled_points())
+
+    def _sampled_points(self) -> np.ndarray:
+        """``(k, n_joints + n_end_sites, 3)`` joints and End Sites on at most 64 evenly spaced frames."""
+        if self.n_frames == 0:
+            return np.zeros((0, self.n_joints + len(self.end_sites), 3))
+        k = min(self.n_frames, UNITS_SAMPLE_FRAMES)
+        frames = np.unique(np.linspace(0, self.n_frames - 1, k).round().astype(np.intp))
+        pose = self._cached_pose
+        if pose is not None and pose.end_sites is not None:
+            return np.concatenate([pose.positions[frames], pose.end_sites[frames]], axis=1)
+        sampled = forward_kinematics(
+            self.parents,
+            self.offsets,
+            [lay.names for lay in self.layout],
+            [lay.first_column for lay in self.layout],
+            self.channels[frames],
+            [e.parent for e in self.end_sites],
+            [e.offset for e in self.end_sites],
+            end_sites=True,
+        )
+        if sampled.end_sites is None:
+            raise AssertionError("unreachable: end_sites=True computes the End Sites")
+        return np.concatenate([sampled.positions, sampled.end_sites], axis=1)
 
     def __repr__(self) -> str:
         src = f" {self.path.name!r}" if self.path else ""
@@ -274,21 +370,43 @@ class Motion:
         return pose
 
     # -------------------------------------------------------------------------------------- arms
+    def arm_search(self, side: str, *, names: tuple[str, str, str] | None = None) -> skeleton.ArmSearch:
+        """What arm detection finds for ``side``, and rejects, without raising for a missing chain.
+
+        See :func:`retarget.bvh.skeleton.search_arm`; the plausibility checks measure against
+        :meth:`skeleton_height`.  Bad explicit ``names`` raise as in :meth:`arm_points`.
+        """
+        return skeleton.search_arm(
+            side,
+            joint_names=self.joint_names,
+            parents=self.parents,
+            offsets=self.offsets,
+            end_site_parents=tuple(e.parent for e in self.end_sites),
+            end_site_offsets=tuple(e.offset for e in self.end_sites),
+            names=names,
+            path=self.path,
+            height=self.skeleton_height(),
+        )
+
     def arm_points(self, side: str, *, names: tuple[str, str, str] | None = None) -> ArmChain:
         """Shoulder, elbow and wrist of the ``"left"`` or ``"right"`` arm for every frame.
 
         Detection by joint names (CMU, Mixamo, Collar/Shoulder/Elbow/Wrist,
-        Rigify, MakeHuman, any prefix), else by skeleton structure; see
-        :mod:`retarget.bvh.skeleton`.  ``names`` overrides detection with three
-        joint names (the wrist may be ``"<joint>/End Site"``).
+        Rigify, MakeHuman, Poser/DAZ, OptiTrack, any prefix), else by skeleton
+        structure; see :mod:`retarget.bvh.skeleton`.  ``names`` overrides
+        detection with three joint names (the wrist may be ``"<joint>/End Site"``).
 
         Returns an :class:`ArmChain`: ``points`` ``(n_frames, 3, 3)`` float64, file
         units, BVH world frame (``[:, 0]`` shoulder, ``[:, 1]`` elbow, ``[:, 2]``
-        wrist; read-only), the joints' ``names`` and ``indices``, and how they were
-        found (``method``).
+        wrist; read-only), ``rest_points`` ``(3, 3)``, the joints' ``names`` and
+        ``indices``, how they were found (``method``, ``detail``), the candidates not
+        chosen (``rejected``) and ``warnings``.
         Raises ``ValueError`` for a bad side or not three ``names``, and
         :class:`~retarget.errors.BvhError` (naming the file) when no arm chain
-        (or more than one) is found or a given name does not exist.
+        (or more than one) is found, a given name does not exist, or the chain's
+        upper arm or forearm (median over the frames; the rest pose's without
+        frames) is under 2 % or over 75 % of :meth:`skeleton_height`.  Outside
+        6-40 % it logs a warning, also kept in ``warnings``.
 
         >>> from retarget.bvh.parse import DEMO_CLIP, load_bvh
         >>> motion = load_bvh(DEMO_CLIP)
@@ -302,32 +420,44 @@ class Motion:
         ...
         ValueError: Expected side 'left' or 'right', got 'up'
         """
-        found = skeleton.find_arm(
-            side,
-            joint_names=self.joint_names,
-            parents=self.parents,
-            offsets=self.offsets,
-            end_site_parents=tuple(e.parent for e in self.end_sites),
-            end_site_offsets=tuple(e.offset for e in self.end_sites),
-            names=names,
-            path=self.path,
-        )
+        search = self.arm_search(side, names=names)
+        found = search.found
+        if found is None:
+            raise BvhError(search.error, path=self.path)
+        if found.method == "structure":
+            log.info("%s arm found by structure: %s", side, " > ".join(found.names))
         pos = self.positions()
         points = np.empty((self.n_frames, 3, 3))
         points[:, 0] = pos[:, found.indices[0]]
         points[:, 1] = pos[:, found.indices[1]]
+        rest = self.rest_positions()
         if found.wrist_is_end_site:
             points[:, 2] = self.end_site_positions()[:, found.indices[2]]
+            rest_wrist = self.rest_end_site_positions()[found.indices[2]]
         else:
             points[:, 2] = pos[:, found.indices[2]]
-        return ArmChain(
+            rest_wrist = rest[found.indices[2]]
+        chain = ArmChain(
             side=found.side,
             names=found.names,
             indices=found.indices,
             wrist_is_end_site=found.wrist_is_end_site,
             points=_readonly(points),
             method=found.method,
+            rest_points=_readonly(np.array([rest[found.indices[0]], rest[found.indices[1]], rest_wrist])),
+            rejected=found.rejected,
+            detail=found.detail,
         )
+        upper, fore = chain.bone_lengths
+        n = self.n_frames
+        measured = f"median over {n} frame{'s' if n != 1 else ''}" if n else "in the rest pose (no frames)"
+        warning = skeleton.check_arm_lengths(
+            found, upper, fore, self.skeleton_height(), measured=measured, path=self.path
+        )
+        if warning is None:
+            return chain
+        log.warning("%s: %s", self.path or "<bvh>", warning)
+        return replace(chain, warnings=(warning,))
 
     # ---------------------------------------------------------------------------------- transforms
     def scaled(self, factor: float) -> Motion:

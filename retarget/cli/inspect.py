@@ -2,8 +2,11 @@
 
 Prints the joint tree with each joint's channels, the frame count, frame rate
 and duration, the rotation orders used, a units guess from the skeleton's
-height, and the detected arm chains (shoulder > elbow > wrist) with their
-bone lengths.  ``--json`` prints the same on stdout as one JSON object.
+height (and what the height was measured on), and the detected arm chains
+(shoulder > elbow > wrist) with their bone lengths, how each was found (names,
+structure, explicit) and the candidates not chosen with the reason, so a user
+sees what to rename or which joints to name with ``--arm-joints``.  ``--json``
+prints the same on stdout as one JSON object.
 """
 
 from __future__ import annotations
@@ -21,7 +24,8 @@ from retarget.errors import BvhError
 DESCRIPTION = (
     "Show what is in a BVH file: the joint tree with each joint's channels, frame count, frame rate and duration, "
     "the rotation orders used, a units guess from the skeleton's height, and the detected arm chains "
-    "(shoulder > elbow > wrist) with their bone lengths. --json prints the same as one JSON object on stdout."
+    "(shoulder > elbow > wrist) with their bone lengths, how each was found (names, structure, explicit) and why "
+    "other candidates were not chosen. --json prints the same as one JSON object on stdout."
 )
 
 EXAMPLES = """\
@@ -33,6 +37,9 @@ examples:
 """
 
 _UNIT_NAMES = {"m": "metres", "cm": "centimetres", "mm": "millimetres", "in": "inches", "unknown": "unknown"}
+_BASIS = {"rest pose": "", "motion": " in the motion", "bone lengths": " from the bone lengths"}
+#: At most this many candidates not chosen are printed per side in the text report (all are in the JSON).
+SHOWN_REJECTED = 6
 
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
@@ -90,23 +97,8 @@ def describe(
                 "end_sites": [k for k, e in enumerate(motion.end_sites) if e.parent == j],
             }
         )
-    arms: dict[str, Any] = {}
     explicit = (names[0], names[1], names[2]) if names else None  # argparse gives exactly 3 (nargs=3)
-    for side in sides:
-        try:
-            chain = motion.arm_points(side, names=explicit)
-        except BvhError as exc:
-            arms[side] = {"error": exc.message}
-            continue
-        upper, fore = chain.bone_lengths
-        arms[side] = {
-            "shoulder": chain.names[0],
-            "elbow": chain.names[1],
-            "wrist": chain.names[2],
-            "method": chain.method,
-            "upper_arm_length": upper,
-            "forearm_length": fore,
-        }
+    arms = {side: describe_arm(motion, side, explicit) for side in sides}
     orders = Counter(j["rotation_order"] for j in joints if j["rotation_order"])
     return {
         "file": str(motion.path) if motion.path else None,
@@ -123,10 +115,48 @@ def describe(
             "height": units.height,
             "up_axis": units.up_axis,
             "metres_per_unit": units.metres_per_unit,
+            "basis": units.basis,
+            "skeleton_height": motion.skeleton_height(),
         },
         "joints": joints,
         "end_sites": [{"parent": e.parent, "offset": list(e.offset)} for e in motion.end_sites],
         "arms": arms,
+    }
+
+
+def describe_arm(motion: Motion, side: str, names: tuple[str, str, str] | None = None) -> dict[str, Any]:
+    """One side's arm report: the chain and its bone lengths, or ``error``; with ``how`` and ``rejected`` always.
+
+    ``how`` says how the chain was found, or why none was; ``rejected`` lists the candidates not chosen as
+    ``{"chain": [shoulder, elbow, wrist], "reason": ...}``; ``warnings`` the unusual bone lengths.  A chain found
+    but degenerate (bones under 2 % or over 75 % of the skeleton's height) has its joints and ``error``.
+    """
+    try:
+        search = motion.arm_search(side, names=names)
+    except BvhError as exc:  # a bad explicit name
+        return {"error": exc.message, "how": "named explicitly", "rejected": []}
+    out: dict[str, Any] = {
+        "how": search.detail,
+        "rejected": [{"chain": list(r.names), "reason": r.reason} for r in search.rejected],
+    }
+    if search.found is None:
+        return {"error": search.error, **out}
+    try:
+        chain = motion.arm_points(side, names=names)
+    except BvhError as exc:  # a degenerate chain: found, but its bones are no arm's
+        joints = dict(zip(("shoulder", "elbow", "wrist"), search.found.names, strict=True))
+        return {"error": exc.message, **joints, "method": search.found.method, **out}
+    upper, fore = chain.bone_lengths
+    return {
+        "shoulder": chain.names[0],
+        "elbow": chain.names[1],
+        "wrist": chain.names[2],
+        "method": chain.method,
+        "upper_arm_length": upper,
+        "forearm_length": fore,
+        "lengths_from": chain.lengths_from,
+        "warnings": list(chain.warnings),
+        **out,
     }
 
 
@@ -145,13 +175,14 @@ def format_text(report: dict[str, Any]) -> str:
     orders = ", ".join(f"{o} ({n} joint{'s' if n != 1 else ''})" for o, n in report["rotation_orders"].items())
     lines.append(f"  rotations  {orders or 'none'} (intrinsic, in listed order)")
     u = report["units"]
+    basis = _BASIS.get(u.get("basis", "rest pose"), "")
     if u["guess"] == "unknown":
         units = (
-            f"unknown: {u['height']:.4g} units tall ({u['up_axis']} up); "
+            f"unknown: {u['height']:.4g} units tall{basis} ({u['up_axis']} up); "
             f"{u['metres_per_unit']:.4g} m per unit would make it 1.7 m tall"
         )
     else:
-        units = f"{_UNIT_NAMES[u['guess']]} ({u['height']:.4g} {u['guess']} tall, {u['up_axis']} up)"
+        units = f"{_UNIT_NAMES[u['guess']]} ({u['height']:.4g} {u['guess']} tall{basis}, {u['up_axis']} up)"
     lines.append(f"  units      {units}")
     lines.append("")
     lines.append("joints:")
@@ -173,15 +204,28 @@ def format_text(report: dict[str, Any]) -> str:
     lines.append("")
     lines.append("arm chains:")
     unit = u["guess"] if u["guess"] != "unknown" else "units"
+    pad = " " * 9
     for side, arm in report["arms"].items():
+        rejected = arm.get("rejected", [])
         if "error" in arm:
-            lines.append(f"  {side:<6} none: {arm['error']}")
-            continue
-        lines.append(
-            f"  {side:<6} {arm['shoulder']} > {arm['elbow']} > {arm['wrist']}  "
-            f"upper arm {arm['upper_arm_length']:.4g} {unit}, forearm {arm['forearm_length']:.4g} {unit} "
-            f"(by {arm['method']})"
-        )
+            if rejected and "shoulder" not in arm and arm.get("how"):  # none found: the reasons on their own lines
+                lines.append(f"  {side:<6} none: {arm['how']}")
+            else:  # a bad explicit name, or a degenerate chain (the message names its joints)
+                lines.append(f"  {side:<6} none: {arm['error']}")
+        else:
+            rest = " (rest pose: no frames)" if arm.get("lengths_from") == "rest pose" else ""
+            lines.append(
+                f"  {side:<6} {arm['shoulder']} > {arm['elbow']} > {arm['wrist']}  "
+                f"upper arm {arm['upper_arm_length']:.4g} {unit}, forearm {arm['forearm_length']:.4g} {unit}{rest} "
+                f"(by {arm['method']})"
+            )
+            if arm.get("how"):
+                lines.append(f"{pad}how: {arm['how']}")
+            lines.extend(f"{pad}warning: {w}" for w in arm.get("warnings", []))
+        for r in rejected[:SHOWN_REJECTED]:
+            lines.append(f"{pad}not chosen: {' > '.join(r['chain'])} ({r['reason']})")
+        if len(rejected) > SHOWN_REJECTED:
+            lines.append(f"{pad}not chosen: {len(rejected) - SHOWN_REJECTED} more (see --json)")
     return "\n".join(lines) + "\n"
 
 

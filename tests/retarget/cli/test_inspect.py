@@ -3,14 +3,28 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from retarget.bvh import DEMO_CLIP
 from retarget.cli import main
-from tests.helpers import J, arm_skeleton, bvh_text
+from retarget.cli.inspect import SHOWN_REJECTED
+from tests.helpers import (
+    ArmNaming,
+    J,
+    arm_skeleton,
+    bvh_text,
+    lafan_like,
+    left_hand_rig,
+    n_channels,
+    named_humanoid,
+    renamed,
+    with_face,
+)
 
 CMU = {"clavicle": "{side}Shoulder", "upper": "{side}Arm", "fore": "{side}ForeArm", "hand": "{side}Hand"}
 CMU |= {"left": "Left", "right": "Right"}
@@ -129,3 +143,96 @@ def test_python_dash_m(tmp_path):
     assert fail.returncode == 2
     assert fail.stdout == ""
     assert fail.stderr == f"retarget: {bad}:3: Expected '{{' after ROOT 'Hips', got end of file\n"
+
+
+# ------------------------------------------------------------------ issue 15: how each chain was found, units
+
+
+def write(tmp_path, name: str, root, frames=None) -> str:
+    path = tmp_path / name
+    path.write_text(bvh_text(root, frames))
+    return str(path)
+
+
+def test_structure_says_how_and_what_was_not_chosen(tmp_path, capsys):
+    path = write(tmp_path, "bones.bvh", renamed(with_face(named_humanoid(ArmNaming(), fingers=True))))
+    assert main(["inspect", path]) == 0
+    out = capsys.readouterr().out
+    arms = out[out.index("arm chains:") :].splitlines()
+    assert arms[1].startswith("  left   bone13 > bone14 > bone15  upper arm 28 cm, forearm 25 cm (by structure)")
+    assert arms[2] == (
+        "         how: no joint is named as a left upper arm, forearm or hand; by structure: the left limb off "
+        "bone02, mirrored by bone32 > bone33 > bone34"
+    )
+    assert "         not chosen: bone32 > bone33 > bone34 (on the right in the rest pose)" in arms
+    assert (
+        "         not chosen: bone50 > bone51 > bone52 (neither its names nor the rest pose put it on a side)" in arms
+    )
+    assert sum(line.startswith("         not chosen: ") for line in arms) == 2 * (SHOWN_REJECTED + 1)
+    assert re.search(r"\n         not chosen: \d+ more \(see --json\)\n", out)
+
+    assert main(["inspect", path, "--json", "--side", "left"]) == 0
+    left = json.loads(capsys.readouterr().out)["arms"]["left"]
+    assert (left["method"], left["shoulder"], left["lengths_from"], left["warnings"]) == (
+        "structure",
+        "bone13",
+        "frames",
+        [],
+    )
+    assert left["how"].startswith("no joint is named as a left upper arm")
+    assert {"chain": ["bone32", "bone33", "bone34"], "reason": "on the right in the rest pose"} in left["rejected"]
+    assert len(left["rejected"]) > SHOWN_REJECTED + 1
+    assert any("an arm's are 6-40 %" in r["reason"] for r in left["rejected"])  # fingers and tongue
+
+
+def test_no_arm_lists_the_candidates_and_why(tmp_path, capsys):
+    path = write(tmp_path, "glove.bvh", left_hand_rig())
+    assert main(["inspect", path]) == 0
+    out = capsys.readouterr().out
+    assert (
+        "  left   none: named left: hand LeftHand; no upper arm or forearm; no plausible limb by structure\n"
+        "         not chosen: LeftHandThumb1 > LeftHandThumb2 > LeftHandThumb3 (its names say finger)\n" in out
+    )
+    assert "  right  none: no joint is named as a right upper arm, forearm or hand; no plausible" in out
+    assert main(["inspect", path, "--json"]) == 0
+    right = json.loads(capsys.readouterr().out)["arms"]["right"]
+    assert right["error"].startswith("Expected a right arm chain (shoulder, elbow, wrist), found none by joint names")
+    assert [r["reason"] for r in right["rejected"]] == ["its names say finger"] * 5
+
+
+def test_zero_frames_show_the_rest_pose_lengths(tmp_path, capsys):
+    root = arm_skeleton(CMU)
+    path = tmp_path / "template.bvh"
+    path.write_text(bvh_text(root, np.zeros((0, n_channels(root)))))
+    assert main(["inspect", str(path), "--side", "right"]) == 0
+    out = capsys.readouterr().out
+    assert (
+        "right  RightArm > RightForeArm > RightHand  upper arm 28 cm, forearm 25 cm (rest pose: no frames) (by names)"
+        in out
+    )
+
+
+def test_units_from_the_bones_or_the_motion(tmp_path, capsys):
+    root, _ = lafan_like()
+    assert main(["inspect", write(tmp_path, "lafan0.bvh", root, np.zeros((0, n_channels(root))))]) == 0
+    assert "  units      centimetres (179.2 cm tall from the bone lengths, Y up)\n" in capsys.readouterr().out
+    root, frames = lafan_like(3)
+    assert main(["inspect", write(tmp_path, "lafan.bvh", root, frames), "--json"]) == 0
+    units = json.loads(capsys.readouterr().out)["units"]
+    assert (units["guess"], units["height"], units["basis"]) == ("cm", 192.0, "motion")
+    assert units["skeleton_height"] == pytest.approx(179.2, abs=0.05)
+    assert main(["inspect", write(tmp_path, "lafan.bvh", root, frames)]) == 0
+    assert "  units      centimetres (192 cm tall in the motion, Y up)\n" in capsys.readouterr().out
+
+
+def test_unusual_and_degenerate_arms(tmp_path, capsys, caplog):
+    root = arm_skeleton(CMU)
+    root.children[0].children[1].children[0].children[0].offset = (6.0, 0.0, 0.0)  # LeftForeArm: upper arm 6 cm
+    root.children[0].children[2].children[0].children[0].offset = (-1e-4, 0.0, 0.0)  # RightForeArm: 0.0001 cm
+    assert main(["inspect", write(tmp_path, "odd.bvh", root)]) == 0
+    out = capsys.readouterr().out
+    assert "  left   LeftArm > LeftForeArm > LeftHand  upper arm 6 cm, forearm 25 cm (by names)\n" in out
+    assert "         warning: the left upper arm and forearm are usually 6-40 % of the skeleton's height" in out
+    assert [r.getMessage().startswith(f"{tmp_path / 'odd.bvh'}: the left upper arm") for r in caplog.records] == [True]
+    assert "  right  none: Expected the right upper arm and forearm to be 2-75 % of the skeleton's height" in out
+    assert "RightArm > RightForeArm 0.0001 units" in out
