@@ -2,24 +2,38 @@
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 import pytest
 
 import retarget
 from retarget.bvh import parse_bvh
-from retarget.errors import ConfigError
+from retarget.bvh.motion import ArmChain
+from retarget.errors import BvhError, ConfigError
 from retarget.mapping.config import Axis, MappingConfig
 from retarget.mapping.geometry import (
+    FROM_SHOULDERS,
+    FROM_SPINE,
+    HELD,
     ROLL_WEIGHT,
     WRIST_WEIGHT,
     Targets,
     Workspace,
     arm_geometry,
     body_frames,
+    body_frames_masked,
+    clip_body_frames,
     default_origin,
+    hold_good_frames,
     ik_weights,
     retarget_targets,
+    shoulder_offsets,
+    spine_frames,
+    torso_joint,
 )
+from tests.helpers import POS_XYZ, ROT_ZXY, J, arm_skeleton, joints_in_order
+from tests.helpers import bvh_text as rig_text
 
 # A small CMU-named skeleton, cm, facing +Z, Y up.  Root channels put Yrotation first, so adding to it turns
 # the whole body about the vertical through the root.
@@ -314,3 +328,248 @@ def test_the_scalar_clamp_and_sample_agree_with_the_vectorized_ones(ws, seed):
         one, moved = targets.at(float(t))
         np.testing.assert_allclose(one, p, atol=1e-12)
         assert moved == c
+
+
+# ------------------------------------------------------------------------------------- body frame fallbacks
+#: tests.helpers.arm_skeleton names: Hips > Chest > Neck, {Left,Right}Shoulder (clavicle) > Arm > ForeArm > Hand
+NAMES = {"left": "Left", "right": "Right", "clavicle": "{side}Shoulder", "upper": "{side}Arm", "fore": "{side}ForeArm"}
+NAMES["hand"] = "{side}Hand"
+
+
+def rig(*, arms: tuple[str, ...] = ("left", "right"), positions: tuple[str, ...] = (), legs: bool = True) -> J:
+    """``arm_skeleton`` with only the arms of ``arms``, position channels on the joints named in ``positions``
+    (as some exporters write every joint), and with or without legs."""
+    root = arm_skeleton(NAMES)
+    chest = root.children[0]
+    gone = {f"{NAMES[s]}Shoulder" for s in ("left", "right") if s not in arms}
+    chest.children = [c for c in chest.children if c.name not in gone]
+    if not legs:
+        root.children = [chest]
+    for j in joints_in_order(root):
+        if j.name in positions:
+            j.channels = (*POS_XYZ, *ROT_ZXY)
+    return root
+
+
+def pose(root: J, n: int, values: dict[tuple[str, str], object] | None = None) -> np.ndarray:
+    """``(n, n_channels)`` frames of ``root``: position channels at the joint's OFFSET, rotations 0, except
+    ``values[(joint, channel)]`` (a number or ``(n,)`` per frame)."""
+    values = values or {}
+    cols = []
+    for j in joints_in_order(root):
+        for ch in j.channels:
+            default = j.offset["XYZ".index(ch[0])] if ch.endswith("position") else 0.0
+            cols.append(np.broadcast_to(np.asarray(values.get((j.name, ch), default), dtype=np.float64), (n,)))
+    return np.stack(cols, axis=-1)
+
+
+def moving(n: int = 40) -> dict[tuple[str, str], object]:
+    """The torso walks, turns and bends, the left and right arms swing; the clavicles stay still."""
+    t = np.linspace(0.0, 1.0, n)
+    return {
+        ("Hips", "Xposition"): 80 * t,
+        ("Hips", "Yrotation"): 120 * t,
+        ("Hips", "Xrotation"): 10 * np.sin(5 * t),
+        ("Chest", "Xrotation"): 25 * np.sin(3 * t),
+        ("Chest", "Yrotation"): 30 * np.cos(4 * t),
+        ("LeftArm", "Zrotation"): 70 * np.sin(6 * t),
+        ("LeftForeArm", "Yrotation"): 60 * t,
+        ("RightArm", "Xrotation"): 50 * np.cos(5 * t),
+    }
+
+
+def angles(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Degrees between rotations ``a`` and ``b`` ``(n, 3, 3)``."""
+    m = np.einsum("nji,njk->nik", a, b)
+    return np.degrees(np.arccos(np.clip((np.trace(m, axis1=1, axis2=2) - 1) / 2, -1.0, 1.0)))
+
+
+def test_body_frames_masked_flags_the_degenerate_frames():
+    hips = np.zeros((4, 3))
+    left = np.array([[1.0, 5, 0], [0, 5, 0], [0, 10, 0], [np.nan, 5, 0]])
+    right = np.array([[-1.0, 5, 0], [0, 5, 0], [0, 2, 0], [-1, 5, 0]])  # fine, coincide, along the spine, NaN
+    frames, ok = body_frames_masked(hips, left, right)
+    assert ok.tolist() == [True, False, False, False]
+    np.testing.assert_array_equal(frames[0], body_frames(hips[:1], left[:1], right[:1])[0])
+    assert np.isnan(frames[1:]).all()
+    with pytest.raises(ValueError, match="Expected a non-degenerate torso"):
+        body_frames(hips[2:3], left[2:3], right[2:3])
+
+
+def test_the_torso_joint_carries_the_shoulders():
+    motion = parse_bvh(rig_text(rig(), pose(rig(), 1)))
+    both = [motion.joint_index("LeftArm"), motion.joint_index("RightArm")]
+    assert motion.joint_names[torso_joint(motion.parents, both)] == "Chest"
+    assert motion.joint_names[torso_joint(motion.parents, both[:1])] == "Chest"  # it branches to the neck too
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2], ids=lambda s: f"seed{s}")
+def test_spine_frames_match_the_shoulder_frames(seed):
+    """The torso joint carries the shoulders: exact while the clavicles are still, a few degrees when they move."""
+    for clavicles, tolerance in ((0.0, 1e-4), (1 / 3, 7.0)):  # still, then +-5 degrees
+        frames = random_frames(seed)
+        for i, (name, _, _) in enumerate(JOINTS):
+            if name.endswith("Shoulder"):
+                frames[:, 6 + 3 * (i - 1) : 9 + 3 * (i - 1)] *= clavicles
+        motion = parse_bvh(bvh_text(frames))
+        positions = motion.positions()
+        rotations, _ = motion.global_transforms()
+        left, right = motion.arm_points("left").points[:, 0], motion.arm_points("right").points[:, 0]
+        hips = positions[:, 0]
+        truth = body_frames(hips, left, right)
+        t = torso_joint(motion.parents, [motion.joint_index("LeftArm"), motion.joint_index("RightArm")])
+        assert motion.joint_names[t] == "Spine"
+        good = np.ones(len(hips), dtype=bool)
+        rest = motion.rest_positions()
+        for offsets in (
+            shoulder_offsets(positions[:, t], rotations[:, t], left, side="left", other_shoulder=right, good=good),
+            shoulder_offsets(positions[:, t], rotations[:, t], left, side="left", spine_axis=rest[t] - rest[0]),
+            shoulder_offsets(positions[:, t], rotations[:, t], right, side="right", spine_axis=rest[t] - rest[0]),
+        ):
+            spine, ok = spine_frames(hips, positions[:, t], rotations[:, t], offsets)
+            assert ok.all()
+            assert angles(truth, spine).max() < tolerance
+
+
+@pytest.mark.parametrize("side", ["left", "right"])
+def test_a_one_armed_rig_takes_its_body_frame_from_the_spine(arm, caplog, side):
+    values = moving()
+    both = parse_bvh(rig_text(rig(), pose(rig(), 40, values)))
+    one = rig(arms=(side,), legs=False)  # no legs: the structure has no other limb to mistake for an arm
+    motion = parse_bvh(rig_text(one, pose(one, 40, values)), path="one_arm.bvh")
+    with caplog.at_level(logging.INFO, logger="retarget.mapping.geometry"):
+        body = clip_body_frames(motion, motion.arm_points(side))
+    assert body.count(FROM_SPINE) == 40 and body.torso == "Chest"
+    truth = body_frames(
+        both.positions()[:, 0], both.arm_points("left").points[:, 0], both.arm_points("right").points[:, 0]
+    )
+    np.testing.assert_allclose(body.frames, truth, atol=1e-9)
+    [record] = caplog.records
+    assert record.levelno == logging.INFO
+    assert record.getMessage().startswith(f"one_arm.bvh: body frame from the spine, Chest carrying the {side} shoulder")
+    config = MappingConfig(side=retarget.mapping.Side(side))
+    np.testing.assert_allclose(
+        retarget_targets(motion, arm, config).raw, retarget_targets(both, arm, config).raw, atol=1e-9
+    )
+
+
+def test_a_fixed_forward_axis_needs_no_other_arm(arm, caplog):
+    one = rig(arms=("left",))
+    motion = parse_bvh(rig_text(one, pose(one, 5, moving(5))))
+    with caplog.at_level(logging.INFO, logger="retarget.mapping.geometry"):
+        targets = retarget_targets(motion, arm, MappingConfig(side=retarget.mapping.Side.LEFT, forward=Axis.PZ))
+    assert np.isfinite(targets.raw).all() and not caplog.records
+
+
+def coinciding(n: int, bad: list[int]) -> dict[tuple[str, str], object]:
+    """``moving(n)``, with both shoulders moved onto the chest (position channels of clavicles and upper arms) in
+    the frames ``bad``."""
+    values = moving(n)
+    for name in ("LeftShoulder", "RightShoulder", "LeftArm", "RightArm"):
+        j = next(j for j in joints_in_order(rig()) if j.name == name)
+        for k, axis in enumerate("XYZ"):
+            per_frame = np.full(n, float(j.offset[k]))
+            per_frame[bad] = 0.0
+            values[(name, f"{axis}position")] = per_frame
+    return values
+
+
+def test_frames_whose_shoulders_coincide_come_from_the_spine(arm, caplog):
+    kinect = rig(positions=("LeftShoulder", "RightShoulder", "LeftArm", "RightArm"))
+    bad = [0, 7, 8, 9, 39]
+    motion = parse_bvh(rig_text(kinect, pose(kinect, 40, coinciding(40, bad))), path="kinect.bvh")
+    reference = parse_bvh(rig_text(rig(), pose(rig(), 40, moving())))
+    with caplog.at_level(logging.INFO, logger="retarget.mapping.geometry"):
+        body = clip_body_frames(motion, motion.arm_points("right"))
+    assert np.flatnonzero(body.source == FROM_SPINE).tolist() == bad and body.count(FROM_SHOULDERS) == 35
+    truth = clip_body_frames(reference, reference.arm_points("right")).frames
+    np.testing.assert_allclose(body.frames, truth, atol=1e-9)  # the clavicles are still: the spine frames are exact
+    [record] = caplog.records
+    assert record.levelno == logging.WARNING
+    assert "kinect.bvh: the shoulders RightArm and LeftArm coincide or line up with the spine in 5 of 40" in (
+        record.getMessage()
+    )
+    assert np.isfinite(retarget_targets(motion, arm).raw).all()
+
+
+def test_frames_with_no_body_frame_hold_the_previous_good_one(caplog):
+    """Shoulders on the chest, and the chest moved so far down that the hips sit between them: no frame at all."""
+    kinect = rig(positions=("Chest", "LeftShoulder", "RightShoulder", "LeftArm", "RightArm"))
+    bad = [0, 1, 5, 6]
+    values = coinciding(10, bad)
+    chest_y = np.full(10, 30.0)
+    chest_y[bad] = -17.0  # the shoulders' mean offset from the chest is (0, 17, 0): their midpoint lands on the hips
+    values[("Chest", "Yposition")] = chest_y
+    for channel in ("Xrotation", "Yrotation"):  # and the chest turns with the hips
+        values[("Chest", channel)] = np.where(np.isin(np.arange(10), bad), 0.0, values[("Chest", channel)])
+    motion = parse_bvh(rig_text(kinect, pose(kinect, 10, values)))
+    with caplog.at_level(logging.INFO, logger="retarget.mapping.geometry"):
+        body = clip_body_frames(motion, motion.arm_points("left"))
+    assert body.source.tolist() == [HELD, HELD, 0, 0, 0, HELD, HELD, 0, 0, 0]
+    for k, source in [(0, 2), (1, 2), (5, 4), (6, 4)]:  # the first good frame for the leading ones
+        np.testing.assert_array_equal(body.frames[k], body.frames[source])
+    assert "4 hold the previous good frame" in caplog.text
+
+
+def test_hold_good_frames():
+    values = np.arange(6.0)[:, None] * [1.0, 2.0]
+    held = hold_good_frames(values, np.array([False, False, True, False, True, False]))
+    np.testing.assert_array_equal(held[:, 0], [2, 2, 2, 2, 4, 4])
+    with pytest.raises(ValueError, match="Expected at least one good frame, got none"):
+        hold_good_frames(values, np.zeros(6, dtype=bool))
+
+
+def test_no_body_frame_in_any_frame_is_a_bvh_error(arm):
+    """Every joint placed by its position channels, the shoulders on the chest, and OFFSETs of zero (no rest pose)."""
+    kinect = rig(positions=tuple(j.name for j in joints_in_order(rig())))
+    for j in joints_in_order(kinect):
+        j.offset = (0.0, 0.0, 0.0)
+    values = {("Chest", "Yposition"): 30.0, ("LeftForeArm", "Xposition"): 28.0, ("RightForeArm", "Xposition"): -28.0}
+    values |= {("LeftHand", "Xposition"): 25.0, ("RightHand", "Xposition"): -25.0}
+    motion = parse_bvh(rig_text(kinect, pose(kinect, 3, values)), path="zeros.bvh")
+    match = (
+        r"^zeros\.bvh: Expected a torso for the body frame in at least one of the 3 frames, got none: the shoulders "
+        r"LeftArm and RightArm and the spine \(Chest\) coincide"
+    )
+    with pytest.raises(BvhError, match=match):
+        retarget_targets(motion, arm, MappingConfig(side=retarget.mapping.Side.LEFT))
+    assert retarget_targets(motion, arm, MappingConfig(forward=Axis.PZ)).n_frames == 3  # no torso needed
+
+
+def test_a_clip_without_frames_is_a_bvh_error(arm):
+    motion = parse_bvh(rig_text(rig(), np.zeros((0, 0)), n_frames=0), path="template.bvh")
+    assert motion.n_frames == 0
+    with pytest.raises(BvhError, match=r"^template\.bvh: Expected at least one frame of motion, got Frames: 0") as info:
+        retarget_targets(motion, arm)
+    assert info.value.path == "template.bvh" and isinstance(info.value, ValueError)
+
+
+def test_a_zero_length_arm_is_a_bvh_error(arm, monkeypatch):
+    kinect = rig(positions=("LeftForeArm", "LeftHand"))
+    values = {(name, f"{axis}position"): 0.0 for name in ("LeftForeArm", "LeftHand") for axis in "XYZ"}
+    motion = parse_bvh(rig_text(kinect, pose(kinect, 4, values)), path="folded.bvh")
+    # the skeleton detection may refuse the folded arm first, in its own words; either way one BvhError naming it
+    with pytest.raises(BvhError, match=r"^folded\.bvh: Expected .*LeftArm > LeftForeArm"):
+        retarget_targets(motion, arm, MappingConfig(side=retarget.mapping.Side.LEFT))
+    assert retarget_targets(motion, arm).n_frames == 4  # the right arm is fine
+    # the mapping's own check, whatever the detection lets through
+    right = motion.arm_points("right")
+    folded = ArmChain("right", right.names, right.indices, False, np.zeros((4, 3, 3)))
+    monkeypatch.setattr(motion, "arm_points", lambda side, **_: folded if side == "right" else right)
+    match = r"^folded\.bvh: Expected a right arm of positive length, got 0 .* for RightArm > RightForeArm > RightHand$"
+    with pytest.raises(BvhError, match=match) as info:
+        retarget_targets(motion, arm)
+    assert info.value.path == "folded.bvh" and isinstance(info.value, ValueError)
+
+
+def test_hand_orientation_with_a_zero_length_hand_bone(arm):
+    """CMU hands: the finger joints sit on the wrist (zero OFFSET); the tool x follows the forearm instead."""
+    root = rig()
+    for j in joints_in_order(root):
+        if j.name.endswith("Hand"):
+            j.children = [J(j.name + "Finger", (0.0, 0.0, 0.0), end=(4.0, 0.0, 0.0))]
+            j.end = None
+    motion = parse_bvh(rig_text(root, pose(root, 3)))
+    rotations = retarget_targets(motion, arm, MappingConfig(orientation_weight=1.0)).rotations
+    assert rotations is not None and np.isfinite(rotations).all()
+    np.testing.assert_allclose(rotations[0][:, 0], [0, -1, 0], atol=1e-9)  # T-pose: along the right arm
