@@ -423,7 +423,7 @@ def urdf_text(joints, links=None, name="robot") -> str:
 
 
 # ------------------------------------------------------------------ generated skeletons for arm-chain detection
-#: Arm naming conventions: role -> the word the side marker goes with (see ``retarget.bvh.skeleton``'s table).
+#: Arm naming conventions: role -> the word the side marker goes with (see ``retarget.bvh.names``'s table).
 ARM_WORDS: dict[str, dict[str, str]] = {
     "cmu": {"clavicle": "Shoulder", "upper": "Arm", "fore": "ForeArm", "hand": "Hand"},
     "collar": {"clavicle": "Collar", "upper": "Shoulder", "fore": "Elbow", "hand": "Wrist"},

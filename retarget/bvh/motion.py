@@ -32,7 +32,10 @@ from pathlib import Path
 
 import numpy as np
 
+import retarget.bvh.chains as chains
+import retarget.bvh.proportions as proportions
 import retarget.bvh.skeleton as skeleton
+import retarget.bvh.units as units
 from retarget.bvh.fk import Pose, forward_kinematics
 from retarget.errors import BvhError
 
@@ -85,7 +88,7 @@ class ArmChain:
     ``bone_lengths``: median upper-arm and forearm lengths.
     ``detail``: how the chain was found; ``rejected``: the other candidates and why
     they were not chosen; ``warnings``: unusual bone lengths (see
-    :func:`~retarget.bvh.skeleton.check_arm_lengths`).
+    :func:`~retarget.bvh.proportions.check_arm_lengths`).
     """
 
     side: str
@@ -95,7 +98,7 @@ class ArmChain:
     points: np.ndarray = field(repr=False, compare=False)
     method: str = "names"  #: how the joints were chosen: "names", "structure" or "explicit"
     rest_points: np.ndarray | None = field(default=None, repr=False, compare=False)
-    rejected: tuple[skeleton.Rejected, ...] = field(default=(), repr=False, compare=False)
+    rejected: tuple[chains.Rejected, ...] = field(default=(), repr=False, compare=False)
     detail: str = field(default="", repr=False, compare=False)
     warnings: tuple[str, ...] = field(default=(), repr=False, compare=False)
 
@@ -262,11 +265,11 @@ class Motion:
     def skeleton_height(self) -> float:
         """The standing height from :meth:`bone_lengths`, file units; pose-independent.
 
-        See :func:`~retarget.bvh.skeleton.height_from_bones`; the arm checks and :meth:`guess_units`
+        See :func:`~retarget.bvh.proportions.height_from_bones`; the arm checks and :meth:`guess_units`
         measure against it.
         """
         if self._cached_height is None:
-            self._cached_height = skeleton.height_from_bones(
+            self._cached_height = proportions.height_from_bones(
                 self.parents,
                 self.bone_lengths(),
                 [e.parent for e in self.end_sites],
@@ -274,15 +277,15 @@ class Motion:
             )
         return self._cached_height
 
-    def guess_units(self) -> skeleton.UnitsGuess:
-        """The length unit suggested by the skeleton's height (see :func:`retarget.bvh.skeleton.guess_units`).
+    def guess_units(self) -> units.UnitsGuess:
+        """The length unit suggested by the skeleton's height (see :func:`retarget.bvh.units.guess_units`).
 
         The height is the rest pose's extent when that agrees with :meth:`skeleton_height` (an upright rest
         pose), else the median extent over up to 64 evenly spaced frames when that agrees, else
         :meth:`skeleton_height` itself; ``basis`` says which.
         """
         rest = np.vstack([self.rest_positions(), self.rest_end_site_positions()])
-        return skeleton.guess_units(rest, bone_height=self.skeleton_height(), frames=self._sampled_points())
+        return units.guess_units(rest, bone_height=self.skeleton_height(), frames=self._sampled_points())
 
     def _sampled_points(self) -> np.ndarray:
         """``(k, n_joints + n_end_sites, 3)`` joints and End Sites on at most 64 evenly spaced frames."""
@@ -370,7 +373,7 @@ class Motion:
         return pose
 
     # -------------------------------------------------------------------------------------- arms
-    def arm_search(self, side: str, *, names: tuple[str, str, str] | None = None) -> skeleton.ArmSearch:
+    def arm_search(self, side: str, *, names: tuple[str, str, str] | None = None) -> chains.ArmSearch:
         """What arm detection finds for ``side``, and rejects, without raising for a missing chain.
 
         See :func:`retarget.bvh.skeleton.search_arm`; the plausibility checks measure against
@@ -451,7 +454,7 @@ class Motion:
         upper, fore = chain.bone_lengths
         n = self.n_frames
         measured = f"median over {n} frame{'s' if n != 1 else ''}" if n else "in the rest pose (no frames)"
-        warning = skeleton.check_arm_lengths(
+        warning = proportions.check_arm_lengths(
             found, upper, fore, self.skeleton_height(), measured=measured, path=self.path
         )
         if warning is None:

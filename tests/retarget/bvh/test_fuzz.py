@@ -32,8 +32,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import pytest
 
+from retarget.arm import Arm, load_arm
 from retarget.bvh import Motion, parse_bvh
-from retarget.errors import BvhError
+from retarget.errors import BvhError, RetargetError
+from retarget.mapping import MappingConfig, Side, retarget_targets
 from tests.helpers import POS_XYZ, J, arm_skeleton, bvh_text, n_channels
 
 N_CASES = 3000
@@ -425,6 +427,35 @@ def test_fuzz_parse_bvh(seed):
             check(c)
         except Exception as exc:  # any failure, of any type, names the seed and shows the text
             raise AssertionError(f"{type(exc).__name__}: {exc}\n{c}") from exc
+
+
+#: every Nth fuzz case that loads also goes through the mapping: a clip that loads exports or fails in one line
+MAP_EVERY = 5
+
+
+@pytest.mark.parametrize("seed", range(0, N_CASES, MAP_EVERY), ids=lambda s: f"seed{s}")
+def test_fuzz_a_clip_that_loads_maps_or_fails_in_one_line(wx250s, seed):
+    c = case(seed)
+    motion = outcome(c.text)
+    if isinstance(motion, BvhError):
+        return
+    with _no_hang(5.0, c), warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        for side in ("left", "right"):
+            try:
+                targets = retarget_targets(motion, wx250s, MappingConfig(side=Side(side)))
+            except RetargetError as exc:  # a BvhError about the clip, or a ConfigError: one line, no traceback
+                assert "\n" not in str(exc), f"not one line: {str(exc)!r}\n{c}"
+                continue
+            except Exception as exc:
+                raise AssertionError(f"{side}: {type(exc).__name__}: {exc}\n{c}") from exc
+            assert targets.positions.shape == (motion.n_frames, 3), c
+            assert np.isfinite(targets.positions).all(), f"{side}: non-finite targets\n{c}"
+
+
+@pytest.fixture(scope="module")
+def wx250s() -> Arm:
+    return load_arm("wx250s")
 
 
 def test_bases_are_valid():

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from retarget.bvh import load_bvh, parse_bvh
-from retarget.bvh.skeleton import guess_units, name_side
+from retarget.bvh.names import name_side
+from retarget.bvh.units import guess_units
 from retarget.errors import BvhError
 from tests.helpers import J, arm_skeleton, bvh_text
 

@@ -9,14 +9,9 @@ import numpy as np
 import pytest
 
 from retarget.bvh import DEMO_CLIP, load_bvh, parse_bvh
-from retarget.bvh.skeleton import (
-    ARM_BONE_LIMITS,
-    ARM_BONE_RANGE,
-    ArmJoints,
-    check_arm_lengths,
-    guess_units,
-    height_from_bones,
-)
+from retarget.bvh.chains import ArmJoints
+from retarget.bvh.proportions import ARM_BONE_LIMITS, ARM_BONE_RANGE, check_arm_lengths, height_from_bones
+from retarget.bvh.units import guess_units
 from retarget.errors import BvhError
 from tests.helpers import POS_XYZ, ROT_ZXY, J, arm_skeleton, bvh_text, joints_in_order, lafan_like, n_channels
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from retarget.bvh import parse_bvh
-from retarget.bvh.skeleton import joint_roles, name_side
+from retarget.bvh.names import joint_roles, name_side
 from tests.helpers import ArmNaming, arm_skeleton, bvh_text, expected_arm, named_humanoid, random_arm_naming
 
 CONVENTIONS = {
