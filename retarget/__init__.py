@@ -48,7 +48,7 @@ if TYPE_CHECKING:
     from retarget.control.summary import RunSummary
     from retarget.ik.ccd import CCDSolver, IKResult, Weighting, solve_ik
     from retarget.mapping.config import MappingConfig, Side
-    from retarget.mapping.geometry import Targets, retarget_targets
+    from retarget.mapping.targets import Targets, retarget_targets
 
 #: public name -> the module that defines it
 _LAZY = {
@@ -64,8 +64,8 @@ _LAZY = {
     "Weighting": "retarget.ik.ccd",
     "MappingConfig": "retarget.mapping.config",
     "Side": "retarget.mapping.config",
-    "Targets": "retarget.mapping.geometry",
-    "retarget_targets": "retarget.mapping.geometry",
+    "Targets": "retarget.mapping.targets",
+    "retarget_targets": "retarget.mapping.targets",
     "ControlLoop": "retarget.control.replay",
     "LoopConfig": "retarget.control.loop",
     "TickRecord": "retarget.control.loop",

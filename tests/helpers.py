@@ -21,8 +21,9 @@ from dynamixel_sdk import PacketHandler, PortHandler
 import sim
 from drivers.control_table import Instruction, common_register
 from drivers.units import pulses_to_rad
+from retarget.bvh import parse_bvh
 from retarget.control.clock import VirtualClock
-from retarget.mapping import Targets, Workspace
+from retarget.mapping import MappingConfig, Targets, Workspace, retarget_targets
 from sim.server import PtyServer
 
 # ------------------------------------------------------------------ small BVH files
@@ -649,3 +650,151 @@ def staggered_arm_rig(leg_prefix: str = "bone") -> J:
     spine1 = J("Spine1", (0, 25, 0), children=[spine2, arm("L", 1)])
     channels = ("Xposition", "Yposition", "Zposition", *ROT_ZXY)
     return J("Hips", (0, 98, 0), channels, children=[spine1, leg(1, 1), leg(2, -1)])
+
+
+# ------------------------------------------------------------------ mapping: a CMU-named clip, rigs for the fallbacks
+# A small CMU-named skeleton, cm, facing +Z, Y up.  Root channels put Yrotation first, so adding to it turns
+# the whole body about the vertical through the root.
+CMU_JOINTS = [  # name, parent, offset (cm)
+    ("Hips", None, (0.0, 0.0, 0.0)),
+    ("Spine", "Hips", (0.0, 25.0, 0.0)),
+    ("Neck", "Spine", (0.0, 30.0, 0.0)),
+    ("LeftShoulder", "Spine", (3.0, 27.0, 0.0)),
+    ("LeftArm", "LeftShoulder", (15.0, 0.0, 0.0)),
+    ("LeftForeArm", "LeftArm", (29.0, 0.0, 0.0)),
+    ("LeftHand", "LeftForeArm", (26.0, 0.0, 0.0)),
+    ("RightShoulder", "Spine", (-3.0, 27.0, 0.0)),
+    ("RightArm", "RightShoulder", (-15.0, 0.0, 0.0)),
+    ("RightForeArm", "RightArm", (-29.0, 0.0, 0.0)),
+    ("RightHand", "RightForeArm", (-26.0, 0.0, 0.0)),
+]
+CMU_ROOT_CHANNELS = "Xposition Yposition Zposition Yrotation Xrotation Zrotation"
+CMU_CHANNELS = "Zrotation Xrotation Yrotation"
+
+
+def cmu_bvh_text(frames: np.ndarray, *, scale: float = 1.0, frame_time: float = 1 / 60) -> str:
+    """BVH text of the skeleton above; ``frames`` ``(n, 6 + 3 * 10)`` (root position cm, then degrees)."""
+    lines = ["HIERARCHY"]
+    depth = {}
+
+    def emit(name: str, parent: str | None, offset: tuple[float, float, float]) -> None:
+        d = 0 if parent is None else depth[parent] + 1
+        depth[name] = d
+        pad = "  " * d
+        lines.append(f"{pad}{'ROOT' if parent is None else 'JOINT'} {name}")
+        lines.append(pad + "{")
+        lines.append(f"{pad}  OFFSET {' '.join(f'{v * scale:.9g}' for v in offset)}")
+        channels = CMU_ROOT_CHANNELS if parent is None else CMU_CHANNELS
+        lines.append(f"{pad}  CHANNELS {len(channels.split())} {channels}")
+        children = [j for j in CMU_JOINTS if j[1] == name]
+        for child in children:
+            emit(*child)
+        if not children:
+            lines.extend([f"{pad}  End Site", f"{pad}  {{", f"{pad}    OFFSET 0 0 0", f"{pad}  }}"])
+        lines.append(pad + "}")
+
+    emit(*CMU_JOINTS[0])
+    lines += ["MOTION", f"Frames: {len(frames)}", f"Frame Time: {frame_time:.9g}"]
+    for row in frames:
+        values = np.concatenate([row[:3] * scale, row[3:]])
+        lines.append(" ".join(f"{v:.12g}" for v in values))
+    return "\n".join(lines) + "\n"
+
+
+def cmu_random_frames(seed: int, n: int = 90) -> np.ndarray:
+    """Smooth random motion: the root walks and turns, every joint rotates a little, the arms a lot."""
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 1.5, n)[:, None]
+    cols = 6 + 3 * (len(CMU_JOINTS) - 1)
+    amp = np.full(cols, 15.0)
+    amp[:3] = 20.0  # cm
+    amp[3] = 90.0  # root yaw
+    arm_cols = [6 + 3 * (i - 1) + k for i, (name, _, _) in enumerate(CMU_JOINTS) if "Arm" in name for k in range(3)]
+    amp[arm_cols] = 60.0
+    freq = rng.uniform(0.3, 1.5, cols)
+    phase = rng.uniform(0, 2 * np.pi, cols)
+    frames = amp * np.sin(2 * np.pi * freq * t + phase)
+    frames[:, 1] += 95.0  # hips height
+    return frames
+
+
+def targets_of(frames: np.ndarray, arm, config: MappingConfig | None = None, *, scale: float = 1.0) -> Targets:
+    return retarget_targets(parse_bvh(cmu_bvh_text(frames, scale=scale)), arm, config or MappingConfig())
+
+
+def t_pose(n: int = 3) -> np.ndarray:
+    frames = np.zeros((n, 6 + 3 * (len(CMU_JOINTS) - 1)))
+    frames[:, 1] = 95.0
+    return frames
+
+
+#: tests.helpers.arm_skeleton names: Hips > Chest > Neck, {Left,Right}Shoulder (clavicle) > Arm > ForeArm > Hand
+RIG_NAMES = {
+    "left": "Left",
+    "right": "Right",
+    "clavicle": "{side}Shoulder",
+    "upper": "{side}Arm",
+    "fore": "{side}ForeArm",
+}
+RIG_NAMES["hand"] = "{side}Hand"
+
+
+def rig(*, arms: tuple[str, ...] = ("left", "right"), positions: tuple[str, ...] = (), legs: bool = True) -> J:
+    """``arm_skeleton`` with only the arms of ``arms``, position channels on the joints named in ``positions``
+    (as some exporters write every joint), and with or without legs."""
+    root = arm_skeleton(RIG_NAMES)
+    chest = root.children[0]
+    gone = {f"{RIG_NAMES[s]}Shoulder" for s in ("left", "right") if s not in arms}
+    chest.children = [c for c in chest.children if c.name not in gone]
+    if not legs:
+        root.children = [chest]
+    for j in joints_in_order(root):
+        if j.name in positions:
+            j.channels = (*POS_XYZ, *ROT_ZXY)
+    return root
+
+
+def pose(root: J, n: int, values: dict[tuple[str, str], object] | None = None) -> np.ndarray:
+    """``(n, n_channels)`` frames of ``root``: position channels at the joint's OFFSET, rotations 0, except
+    ``values[(joint, channel)]`` (a number or ``(n,)`` per frame)."""
+    values = values or {}
+    cols = []
+    for j in joints_in_order(root):
+        for ch in j.channels:
+            default = j.offset["XYZ".index(ch[0])] if ch.endswith("position") else 0.0
+            cols.append(np.broadcast_to(np.asarray(values.get((j.name, ch), default), dtype=np.float64), (n,)))
+    return np.stack(cols, axis=-1)
+
+
+def moving(n: int = 40) -> dict[tuple[str, str], object]:
+    """The torso walks, turns and bends, the left and right arms swing; the clavicles stay still."""
+    t = np.linspace(0.0, 1.0, n)
+    return {
+        ("Hips", "Xposition"): 80 * t,
+        ("Hips", "Yrotation"): 120 * t,
+        ("Hips", "Xrotation"): 10 * np.sin(5 * t),
+        ("Chest", "Xrotation"): 25 * np.sin(3 * t),
+        ("Chest", "Yrotation"): 30 * np.cos(4 * t),
+        ("LeftArm", "Zrotation"): 70 * np.sin(6 * t),
+        ("LeftForeArm", "Yrotation"): 60 * t,
+        ("RightArm", "Xrotation"): 50 * np.cos(5 * t),
+    }
+
+
+def coinciding(n: int, bad: list[int]) -> dict[tuple[str, str], object]:
+    """``moving(n)``, with both shoulders moved onto the chest (position channels of clavicles and upper arms) in
+    the frames ``bad``."""
+    values = moving(n)
+    for name in ("LeftShoulder", "RightShoulder", "LeftArm", "RightArm"):
+        j = next(j for j in joints_in_order(rig()) if j.name == name)
+        for k, axis in enumerate("XYZ"):
+            per_frame = np.full(n, float(j.offset[k]))
+            per_frame[bad] = 0.0
+            values[(name, f"{axis}position")] = per_frame
+    return values
+
+
+def angles(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Degrees between rotations ``a`` and ``b`` ``(n, 3, 3)``."""
+    m = np.einsum("nji,njk->nik", a, b)
+    return np.degrees(np.arccos(np.clip((np.trace(m, axis1=1, axis2=2) - 1) / 2, -1.0, 1.0)))

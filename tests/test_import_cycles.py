@@ -92,7 +92,7 @@ def test_the_graph_sees_every_layer():
     layers = {"retarget.bvh", "retarget.arm", "retarget.ik", "retarget.mapping", "retarget.control", "retarget.teleop"}
     assert layers | {"retarget.cli", "drivers.dynamixel_bus", "sim.bus"} <= set(graph)
     assert "retarget.arm.kinematics" in graph["retarget.arm.model"]  # a top-level import
-    assert "retarget.arm.model" in graph["retarget.mapping.geometry"]
+    assert "retarget.arm.model" in graph["retarget.mapping.targets"]
 
 
 @pytest.mark.parametrize(

@@ -54,7 +54,8 @@ from retarget.control.stats import TickStats
 from retarget.control.summary import RunSummary
 from retarget.errors import ConfigError
 from retarget.ik.ccd import CCDSolver
-from retarget.mapping.geometry import Targets, ik_weights
+from retarget.mapping.targets import Targets
+from retarget.mapping.workspace import ik_weights
 
 __all__ = [
     "ClipSource",

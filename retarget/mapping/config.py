@@ -4,8 +4,8 @@
 and robot frames, scale, origin, workspace fractions, IK joint weights); :class:`Side` and
 :class:`Axis` are its enums.  Build it with :meth:`MappingConfig.from_table` from the raw TOML table
 (errors are ``ConfigError`` with the file path and ``mapping.<key>``), and apply CLI flags with
-``overrides`` or :meth:`MappingConfig.with_overrides`.  The geometry and math that use it are in
-:mod:`retarget.mapping.geometry`.
+``overrides`` or :meth:`MappingConfig.with_overrides`.  The math that uses it is in the other modules of
+:mod:`retarget.mapping` (body frames, the arm's workspace, the targets).
 
 The ``[mapping]`` table of an arm file (every key optional; CLI flags override)::
 
@@ -86,7 +86,7 @@ class MappingConfig:
     #: the robot's forward in its base frame: AUTO = where the arm points at home; or +x, -x, +y, -y
     robot_forward: Axis = Axis.AUTO
     arm_scale: float = 0.4  #: the human's full arm length maps to this fraction of the robot's reach
-    #: where the shoulder lands; None = ``retarget.mapping.geometry.default_origin``
+    #: where the shoulder lands; None = ``retarget.mapping.workspace.default_origin``
     origin: tuple[float, float, float] | None = None
     max_reach: float = 0.95  #: outer radius of the workspace shell, fraction of reach
     min_reach: float = 0.2  #: inner radius, fraction of reach

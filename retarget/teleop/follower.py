@@ -50,7 +50,7 @@ from retarget.control.summary import RunSummary
 from retarget.errors import require_positive
 from retarget.ik.ccd import CCDSolver, IKResult
 from retarget.mapping.config import MappingConfig
-from retarget.mapping.geometry import ik_weights
+from retarget.mapping.workspace import ik_weights
 from retarget.teleop.gate import Target, step_toward
 from retarget.teleop.sources import Source
 

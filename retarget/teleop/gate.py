@@ -42,7 +42,7 @@ from retarget.arm.kinematics import rpy_matrix
 from retarget.arm.model import Arm
 from retarget.control.clock import Clock
 from retarget.errors import ConfigError
-from retarget.mapping.geometry import arm_geometry
+from retarget.mapping.workspace import arm_geometry
 
 __all__ = [
     "BasePose",

@@ -1,0 +1,286 @@
+"""Human arm motion -> tool-point targets of a robot arm, vectorized over frames.
+
+The mapping is position based and built from five parts, each configurable in
+the ``[mapping]`` table of an arm description and by CLI flags
+(:class:`~retarget.mapping.config.MappingConfig`, in :mod:`retarget.mapping.config`):
+
+1. the human **wrist relative to the shoulder** of the chosen side;
+2. expressed in a **body frame** built from the torso (hips, the midpoint of
+   both shoulders, the shoulder line), so walking or turning does not move the
+   arm.  Its axes are forward, left and up; ``forward="+z"`` etc. replaces it
+   by a fixed frame of the BVH world instead.  Where the shoulders give no
+   frame (they coincide, or the rig has one arm) the body frame comes from the
+   spine and hips instead (:func:`~retarget.mapping.torso.spine_frames`), and a
+   frame neither gives holds the previous good one
+   (:func:`~retarget.mapping.body.clip_body_frames`);
+3. **scaled** by ``arm_scale`` x the robot's reach over the human arm length
+   measured from the clip (median shoulder-elbow + elbow-wrist), so BVH units
+   (cm, m, inches) do not matter;
+4. **rotated** into the robot base frame (x forward, y left, z up; the body
+   frame's forward/left/up map onto them, which also turns BVH Y-up into
+   robot Z-up);
+5. **offset** to ``origin``, a point of the workspace in the base frame where
+   the human shoulder lands (default: in front of and above the robot's
+   shoulder joint, so a hanging arm maps in front of the robot, not into the
+   base).
+
+Targets outside the :class:`~retarget.mapping.workspace.Workspace` (a shell ``min_reach..max_reach``
+around the robot's shoulder pivot, above ``floor``) are pulled to the nearest
+reachable point and counted in ``Targets.clamped``.
+
+Optionally (``orientation_weight > 0``) the hand's orientation becomes a tool
+orientation: tool x along the hand bone, tool z the body's up in the rest pose.
+
+This module holds the steps' last part and the result: :func:`map_points` (steps 1-5 on points),
+:class:`Targets` (clamped, sampled at any time) and :func:`retarget_targets` (a clip on an arm, with the
+hand's orientation).  The body frames are in :mod:`retarget.mapping.body`, the arm's geometry and
+workspace in :mod:`retarget.mapping.workspace`.
+
+Units: BVH file units in, metres and radians out.  This module is math only
+(it imports neither drivers, sim nor serial).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from retarget.arm.model import Arm
+from retarget.bvh.motion import ArmChain, Motion
+from retarget.errors import BvhError
+from retarget.mapping.body import clip_body_frames, fixed_frame
+from retarget.mapping.config import Axis, MappingConfig
+from retarget.mapping.workspace import Workspace, arm_geometry, default_origin
+
+__all__ = ["Targets", "map_points", "retarget_targets"]
+
+
+def map_points(
+    shoulder: np.ndarray,
+    wrist: np.ndarray,
+    frames: np.ndarray,
+    *,
+    scale: float,
+    origin: np.ndarray,
+    basis: np.ndarray | None = None,
+) -> np.ndarray:
+    """Wrist relative to shoulder, in body ``frames``, scaled, turned and offset: ``(n, 3)`` metres, base frame.
+
+    ``shoulder``/``wrist`` ``(n, 3)`` file units, BVH world; ``frames`` ``(n, 3, 3)`` or ``(3, 3)``
+    (columns forward, left, up); ``scale`` metres per file unit; ``origin`` ``(3,)`` metres;
+    ``basis`` ``(3, 3)`` the robot's forward, left, up in its base frame (default identity: x, y, z).
+    """
+    rel = np.asarray(wrist, dtype=np.float64) - shoulder
+    local = np.einsum("...ji,...j->...i", frames, rel)  # frames^T @ rel: (forward, left, up)
+    if basis is not None:
+        local = local @ np.asarray(basis).T
+    targets: np.ndarray = local * scale + origin
+    return targets
+
+
+@dataclass(frozen=True)
+class Targets:
+    """Per-frame tool targets of one clip on one arm."""
+
+    positions: np.ndarray  #: ``(n_frames, 3)`` metres, base frame, inside the workspace
+    raw: np.ndarray  #: ``(n_frames, 3)`` metres, before the workspace clamp
+    clamped: np.ndarray  #: ``(n_frames,)`` bool, the frame's target was pulled into the workspace
+    rotations: np.ndarray | None  #: ``(n_frames, 3, 3)`` tool orientations in the base frame, or None
+    frame_time: float  #: seconds between frames
+    workspace: Workspace
+    config: MappingConfig
+    scale: float  #: metres per BVH file unit
+
+    @classmethod
+    def from_raw(
+        cls,
+        raw: np.ndarray,
+        *,
+        frame_time: float,
+        workspace: Workspace,
+        config: MappingConfig | None = None,
+        rotations: np.ndarray | None = None,
+        scale: float = 1.0,
+    ) -> Targets:
+        """Targets from tool points ``raw`` ``(n_frames, 3)`` metres (base frame), clamped into ``workspace``."""
+        raw = np.asarray(raw, dtype=np.float64)
+        if raw.ndim != 2 or raw.shape[1] != 3 or raw.shape[0] < 1:
+            raise ValueError(f"Expected raw targets of shape (n_frames, 3), got {raw.shape}")
+        if not (np.isfinite(frame_time) and frame_time > 0):
+            raise ValueError(f"Expected a frame time > 0 s, got {frame_time}")
+        positions, clamped = workspace.clamp(raw)
+        return cls(
+            positions=positions,
+            raw=raw,
+            clamped=clamped,
+            rotations=rotations,
+            frame_time=float(frame_time),
+            workspace=workspace,
+            config=config or MappingConfig(),
+            scale=scale,
+        )
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.positions.shape[0])
+
+    @property
+    def n_clamped(self) -> int:
+        return int(np.count_nonzero(self.clamped))
+
+    def sample(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+        """Targets at clip ``times`` ``(n,)`` seconds by linear interpolation of the raw targets, then clamped.
+
+        Returns ``(positions (n, 3) metres, rotations (n, 3, 3) or None, clamped (n,) bool)``.
+        Times outside the clip hold the first/last frame.
+        """
+        t = np.asarray(times, dtype=np.float64) / self.frame_time
+        n = self.n_frames
+        if n == 1:
+            i0 = np.zeros(t.shape, dtype=np.intp)
+            w = np.zeros(t.shape)
+        else:
+            t = np.clip(t, 0.0, n - 1)
+            i0 = np.minimum(np.floor(t).astype(np.intp), n - 2)
+            w = t - i0
+        i1 = np.minimum(i0 + 1, n - 1)
+        raw = self.raw[i0] * (1.0 - w)[:, None] + self.raw[i1] * w[:, None]
+        positions, clamped = self.workspace.clamp(raw)
+        rotations = None
+        if self.rotations is not None:
+            rotations = _orthonormalize(
+                self.rotations[i0] * (1.0 - w)[:, None, None] + self.rotations[i1] * w[:, None, None]
+            )
+        return positions, rotations, clamped
+
+    def at(self, time: float) -> tuple[np.ndarray, bool]:
+        """The position target ``(3,)`` metres at one clip ``time`` and whether it was clamped (plain floats).
+
+        Same values as :meth:`sample` (without rotations), for a single time.
+        """
+        n = self.n_frames
+        f = min(max(time / self.frame_time, 0.0), n - 1.0)
+        i0 = min(int(f), max(n - 2, 0))
+        w = f - i0 if n > 1 else 0.0
+        a, b = self.raw[i0].tolist(), self.raw[min(i0 + 1, n - 1)].tolist()
+        u = 1.0 - w
+        x, y, z, moved = self.workspace.clamp_point(a[0] * u + b[0] * w, a[1] * u + b[1] * w, a[2] * u + b[2] * w)
+        return np.array((x, y, z)), moved
+
+
+def _orthonormalize(m: np.ndarray) -> np.ndarray:
+    """Nearest rotations ``(n, 3, 3)`` by Gram-Schmidt on the x and z columns."""
+    x = m[..., :, 0] / np.linalg.norm(m[..., :, 0], axis=-1, keepdims=True)
+    z = m[..., :, 2] - np.sum(m[..., :, 2] * x, axis=-1, keepdims=True) * x
+    z /= np.linalg.norm(z, axis=-1, keepdims=True)
+    return np.stack([x, np.cross(z, x), z], axis=-1)
+
+
+def retarget_targets(motion: Motion, arm: Arm, config: MappingConfig | None = None) -> Targets:
+    """Tool-point targets for every frame of ``motion`` on ``arm``: the steps in the module docstring.
+
+    ``motion``: the clip, in any length unit (the scale comes from its own arm length).  ``arm``: the
+    robot.  ``config``: the mapping; default ``MappingConfig.from_table(arm.mapping, path=arm.source)``,
+    the arm file's ``[mapping]`` table.
+
+    Returns :class:`Targets`: ``positions`` ``(n_frames, 3)`` float64 metres in the arm's base frame,
+    inside the :class:`~retarget.mapping.workspace.Workspace`; ``raw`` the same before the workspace clamp; ``clamped``
+    ``(n_frames,)`` bool; ``rotations`` ``(n_frames, 3, 3)`` tool orientations in the base frame when
+    ``config.orientation_weight > 0``, else None; ``frame_time`` seconds; ``scale`` metres per file unit.
+
+    With ``config.forward`` AUTO the body frames come from :func:`~retarget.mapping.body.clip_body_frames`:
+    from both shoulders, else (one arm, or shoulders that coincide) from the spine and hips, else the
+    previous good frame, with one log line saying which fallback was used.
+
+    Raises :class:`~retarget.errors.BvhError` (a ``ValueError``; naming the clip's path) for a clip
+    that cannot drive the arm: no frames (``Frames: 0``), no arm chain for ``config.side``, an arm of
+    zero length, or no frame giving a body frame; :class:`~retarget.errors.ConfigError` for a bad
+    ``[mapping]`` table.
+
+    >>> from retarget.arm.load import load_arm
+    >>> from retarget.bvh.parse import DEMO_CLIP, load_bvh
+    >>> targets = retarget_targets(load_bvh(DEMO_CLIP), load_arm("wx250s"))
+    >>> targets.positions.shape, targets.n_clamped, targets.frame_time, targets.rotations is None
+    ((630, 3), 0, 0.0166667, True)
+    >>> bool(targets.workspace.clamp(targets.positions)[1].any())  # every target already inside the workspace
+    False
+    """
+    if config is None:
+        config = MappingConfig.from_table(arm.mapping, path=arm.source)
+    if motion.n_frames == 0:
+        raise BvhError(
+            "Expected at least one frame of motion, got Frames: 0 (the clip has no frames)", path=motion.path
+        )
+    side = config.side.value
+    chain = motion.arm_points(side)
+    pts = np.asarray(chain.points, dtype=np.float64)  # (n, 3, 3) shoulder, elbow, wrist
+    shoulder, wrist = pts[:, 0], pts[:, 2]
+    human = _human_arm_length(motion, chain, pts, side)
+    hand = _hand_alignment(motion, chain, config) if config.orientation_weight > 0 else None
+    if config.forward is Axis.AUTO:
+        frames = clip_body_frames(motion, chain, up=config.up).frames
+    else:
+        frames = fixed_frame(config.forward, config.up)
+
+    geometry = arm_geometry(arm)
+    scale = config.arm_scale * geometry.reach / human
+    origin = np.asarray(config.origin, dtype=np.float64) if config.origin else default_origin(config, geometry)
+    basis = geometry.basis(config.robot_forward)
+    raw = map_points(shoulder, wrist, frames, scale=scale, origin=origin, basis=basis)
+    rotations = None
+    if hand is not None:  # tool orientations in the body frame, then in the base frame
+        rotations = basis @ np.einsum("...ji,...jk,kl->...il", frames, hand[0], hand[1])
+    return Targets.from_raw(
+        raw,
+        frame_time=float(motion.frame_time),
+        workspace=Workspace.for_arm(arm, config),
+        config=config,
+        rotations=rotations,
+        scale=scale,
+    )
+
+
+def _human_arm_length(motion: Motion, chain: ArmChain, points: np.ndarray, side: str) -> float:
+    """The human arm's length, file units: the median over frames of upper arm + forearm, of ``points`` ``(n, 3, 3)``.
+
+    :class:`~retarget.errors.BvhError` (the clip's path) unless it is positive and finite.
+    """
+    shoulder, elbow, wrist = points[:, 0], points[:, 1], points[:, 2]
+    human = float(np.median(np.linalg.norm(elbow - shoulder, axis=-1) + np.linalg.norm(wrist - elbow, axis=-1)))
+    if not (math.isfinite(human) and human > 0):
+        raise BvhError(
+            f"Expected a {side} arm of positive length, got {human:g} (median upper arm + forearm) for "
+            f"{' > '.join(chain.names)}",
+            path=motion.path,
+        )
+    return human
+
+
+def _hand_alignment(motion: Motion, chain: ArmChain, config: MappingConfig) -> tuple[np.ndarray, np.ndarray]:
+    """The hand joint's global rotations ``(n, 3, 3)`` (hand local -> BVH world) and the tool's axes in it ``(3, 3)``.
+
+    Tool x = the hand bone (the first child of the wrist joint away from it in the first frame, else the
+    forearm direction), tool z = the BVH up axis seen from the hand in the rest pose (rest rotations are
+    identity).  An End Site wrist has no rotation of its own: the forearm's is used.
+    """
+    rotations, positions = motion.global_transforms()
+    w = chain.indices[1] if chain.wrist_is_end_site else chain.indices[2]
+    R = rotations[:, w]  # (n, 3, 3) hand local -> world
+    bones = [positions[0, c] - positions[0, w] for c in motion.children(w)]
+    bones.append(np.asarray(chain.points[0, 2] - chain.points[0, 1], dtype=np.float64))  # the forearm
+    bone = next((b for b in bones if np.linalg.norm(b) > 0), None)
+    if bone is None:
+        raise BvhError(
+            f"Expected a hand bone or forearm of positive length in the first frame to follow the hand's "
+            f"orientation, got none for {' > '.join(chain.names)}",
+            path=motion.path,
+        )
+    x = R[0].T @ bone
+    x /= np.linalg.norm(x)
+    z = config.up.vector - (config.up.vector @ x) * x
+    if np.linalg.norm(z) < 1e-6:
+        z = np.cross(x, [1.0, 0.0, 0.0]) if abs(x[0]) < 0.9 else np.cross(x, [0.0, 0.0, 1.0])
+    z /= np.linalg.norm(z)
+    return R, np.stack([x, np.cross(z, x), z], axis=-1)  # tool -> hand local
