@@ -7,7 +7,8 @@ own packet code; what this module adds is what the SDK leaves to its callers:
   naming the servo IDs that did not answer (never a value of 0 for a failed read);
 * status error bytes are decoded into names ("access error"); the Alert bit is collected in
   :attr:`Link.alerts` for the caller to read Hardware Error Status;
-* sync reads collect the status packets by ID, so a missing servo is named, not just "a timeout";
+* sync reads collect the status packets by ID, so a missing servo is named, not just "a timeout"; a corrupt
+  packet is skipped and the replies after it are kept; a retry asks again only the servos still missing;
 * a group read can be split in two (:meth:`Link.send_group_read`, then :meth:`Link.receive_group_read`), so
   the host can work while the status packets are on the wire.
 """
@@ -122,6 +123,11 @@ class Link:
         self.error_count = 0  #: failures raised after the retries ran out
         self.alerts: set[int] = set()  #: IDs whose status packets had the Alert bit, until the caller clears it
         self.fast_failures = 0  #: consecutive FAST_SYNC_READs that failed as a whole
+        self.corrupt_count = 0  #: corrupt status packets skipped in group reads (the replies after them are kept)
+        # reply loss per servo in group reads (each try counts); a try every servo answered only counts its IDs
+        self.asked: dict[int, int] = {}  #: servo ID -> tries of a group read that was not clean at once
+        self.answered: dict[int, int] = {}  #: servo ID -> replies it sent to those
+        self.clean_tries: dict[tuple[int, ...], int] = {}  #: IDs of a group read -> first tries all answered
 
     @property
     def baud(self) -> int:
@@ -134,6 +140,13 @@ class Link:
             self.port.clearPort()
         except Exception as exc:  # noqa: BLE001 - best effort before a shutdown sequence
             log.debug("clearPort failed: %s", exc)
+
+    def reply_loss(self, dxl_id: int) -> tuple[int, int]:
+        """``(lost, asked)``: group-read tries since the link opened that asked servo ``dxl_id``, and how many of
+        them got no valid reply from it (silent, corrupt, or a status error)."""
+        clean = sum(n for ids, n in self.clean_tries.items() if dxl_id in ids)
+        asked = self.asked.get(dxl_id, 0)
+        return asked - self.answered.get(dxl_id, 0), asked + clean
 
     def _note(self, reply: StatusPacket) -> StatusPacket:
         if reply.alert:
@@ -216,19 +229,30 @@ class Link:
         self.write(dxl_id, reg.address, reg.encode(int(value)), what=f"{reg.name} = {int(value)}")
 
     def write_maybe_unacknowledged(self, dxl_id: int, reg: Register, value: int) -> None:
-        """WRITE that may get no status packet (Status Return Level itself): a missing reply is not an error.
+        """WRITE that may get no status packet (Status Return Level itself): silence is not an error.
 
-        The reply, when there is one, is waited for, so it cannot be mistaken for the next transaction's.
+        Retried like :meth:`write` on a corrupt or missing reply: once the servo took the value it answers the
+        repeat (so a lost reply costs a retry, not the start).  Silence on every try is accepted: a servo at
+        Status Return Level 0 or 1 that ignored it is named by the next transaction.  A status error raises.
+        Each reply, when there is one, is waited for, so it cannot be mistaken for the next transaction's.
         """
         data = list(reg.encode(int(value)))
-        result, error = self.ph.writeTxRx(self.port, dxl_id, reg.address, reg.size, data)
-        if result == COMM_RX_TIMEOUT:
-            return
-        if result != COMM_SUCCESS:
-            raise self._fail(f"{comm_result_name(result)} writing {reg.name} = {int(value)}", [dxl_id])
-        name = status_error_name(error)
-        if name is not None:
-            raise self._fail(f"{name} writing {reg.name} = {int(value)}", [dxl_id])
+        what = f"{reg.name} = {int(value)}"
+        result = COMM_SUCCESS
+        silent = True
+        for attempt in range(self.retries + 1):
+            if attempt:
+                self._retrying(f"writing {what}", [dxl_id], comm_result_name(result))
+            result, error = self.ph.writeTxRx(self.port, dxl_id, reg.address, reg.size, data)
+            if result == COMM_SUCCESS:
+                self._note(StatusPacket(dxl_id, error, b""))
+                name = status_error_name(error)
+                if name is not None:
+                    raise self._fail(f"{name} writing {what}", [dxl_id])
+                return
+            silent = silent and result == COMM_RX_TIMEOUT
+        if not silent:  # something answered, never cleanly
+            raise self._fail(f"{comm_result_name(result)} writing {what}", [dxl_id])
 
     def reboot(self, dxl_id: int) -> None:
         """REBOOT with retries (the servo answers, then restarts: it is silent for a moment after)."""
@@ -268,6 +292,11 @@ class Link:
         while len(replies) < len(lengths):
             rx, result = self.ph.rxPacket(self.port, False)
             if result != COMM_SUCCESS:
+                if result == COMM_RX_CORRUPT and _whole_packet(rx):
+                    # a bad CRC on one whole packet: the SDK consumed exactly it, the next servo's reply follows
+                    self.corrupt_count += 1
+                    log.debug("corrupt status packet from servo %d: parsing on", rx[_PKT_ID])
+                    continue
                 break
             dxl_id = rx[_PKT_ID]
             length = lengths.get(dxl_id)
@@ -345,36 +374,60 @@ class Link:
         finally:
             self.port.is_using = False
 
-    def receive_group_read(self, read: GroupRead, *, what: str = "") -> dict[int, StatusPacket]:
-        """The replies of a group read sent by :meth:`send_group_read`, with the retries of :meth:`group_read`."""
+    def receive_group_read(
+        self, read: GroupRead, *, what: str = "", allow_missing: bool = False
+    ) -> dict[int, StatusPacket]:
+        """The replies of a group read sent by :meth:`send_group_read`, with the retries of :meth:`group_read`.
+
+        Every try keeps what arrived; the next asks again only the servos still missing (or that answered with
+        a status error).  ``allow_missing``: return the replies that came, without the servos still silent
+        after the retries (the caller decides what a missing reply means); a status error still raises.
+        """
         ids = read.ids
         use_fast = read.fast
         sent = read.sent
-        missing: set[int] = set(ids)
+        asking = read
+        replies: dict[int, StatusPacket] = {}
         errors: dict[int, str] = {}
+        asked, answered, clean = self.asked, self.answered, self.clean_tries
         for attempt in range(self.retries + 1):
             if attempt:
-                self._retrying(what or "a group read", sorted(missing | set(errors)), "no reply or a status error")
-                sent = self._send_read(read, use_fast)
-            got = self._receive_read(read, use_fast, sent)
+                self._retrying(what or "a group read", asking.ids, "no reply or a status error")
+                self.port.clearPort()  # the tail of a broken try must not be read as this one's
+                sent = self._send_read(asking, use_fast)
+            got = self._receive_read(asking, use_fast, sent)
             if use_fast:
                 if got is None:  # one packet for all: repeat as a plain read, which names the silent servo
                     self.fast_failures += 1
-                    self._retrying(what or "a group read", ids, "FAST_SYNC_READ failed; as a plain SYNC_READ")
+                    self._retrying(what or "a group read", asking.ids, "FAST_SYNC_READ failed; as a plain SYNC_READ")
                     use_fast = False
-                    got = self._receive_read(read, False, self._send_read(read, False))
+                    got = self._receive_read(asking, False, self._send_read(asking, False))
                 else:
                     self.fast_failures = 0
             assert got is not None  # only a fast read gives None
-            if len(got) == len(ids) and not any(r.error & _NOT_ALERT for r in got.values()):
-                return got  # every servo answered (the replies hold only requested IDs), none with an error
-            errors = {i: name for i, r in got.items() if (name := status_error_name(r.error)) is not None}
-            missing = set(ids) - set(got)
+            if attempt == 0 and len(got) == len(ids) and not any(r.error & _NOT_ALERT for r in got.values()):
+                clean[ids] = clean.get(ids, 0) + 1
+                return got  # the tick path: every servo answered (only requested IDs are kept), none with an error
+            for i in asking.ids:
+                asked[i] = asked.get(i, 0) + 1
+            for i, r in got.items():
+                if r.error & _NOT_ALERT:
+                    errors[i] = status_error_name(r.error) or f"status error {r.error}"
+                else:
+                    answered[i] = answered.get(i, 0) + 1
+                    errors.pop(i, None)
+                    replies[i] = r
+            if len(replies) == len(ids):
+                return {i: replies[i] for i in ids}  # in the read's order
+            asking = read.subset([i for i in ids if i not in replies])
         what = what or "a group read"
-        if missing:
-            raise self._fail(f"no status packet ({what}) at {self.baud} baud after {self.retries + 1} tries", missing)
-        detail = ", ".join(f"{i}: {name}" for i, name in sorted(errors.items()))
-        raise self._fail(f"status error ({what}): {detail}", errors)
+        if errors:
+            detail = ", ".join(f"{i}: {name}" for i, name in sorted(errors.items()))
+            raise self._fail(f"status error ({what}): {detail}", errors)
+        if allow_missing:
+            return replies
+        missing = set(ids) - set(replies)
+        raise self._fail(f"no status packet ({what}) at {self.baud} baud after {self.retries + 1} tries", missing)
 
     def group_read(
         self,
@@ -420,3 +473,18 @@ class GroupRead(NamedTuple):
                 param += [dxl_id, a & 0xFF, a >> 8, n & 0xFF, n >> 8]
         lengths = {dxl_id: n for dxl_id, (_, n) in requests.items()}
         return cls(tuple(requests), lengths, same, address, length, same and fast, tuple(param))
+
+    def subset(self, ids: Sequence[int]) -> GroupRead:
+        """The same read for ``ids`` only (a retry of the servos that did not answer), as a plain read."""
+        if self.same:
+            return GroupRead.plan(dict.fromkeys(ids, (self.address, self.length)))
+        bulk = self.bulk_param
+        shapes = {
+            bulk[k]: (bulk[k + 1] | bulk[k + 2] << 8, bulk[k + 3] | bulk[k + 4] << 8) for k in range(0, len(bulk), 5)
+        }
+        return GroupRead.plan({i: shapes[i] for i in ids})
+
+
+def _whole_packet(rx: Sequence[int]) -> bool:
+    """``rx`` (what the SDK's rxPacket returned) holds one whole packet: it failed its CRC, not a timeout."""
+    return len(rx) >= 11 and len(rx) == (rx[_PKT_LEN_L] | rx[_PKT_LEN_H] << 8) + _PKT_LEN_H + 1

@@ -26,11 +26,15 @@ connect():
      into 0..4095 (e-Manual, Present Position(132)), so the hold goal is the reading modulo 4096
      (:func:`hold_pulse`).
 
-Faults: a servo that stays silent after ``retries`` repeats, or raises a hardware alert, makes the bus refuse
-further goals and raises BusError naming it; close() (or leaving the ``with`` block) then runs the shutdown
-sequence.  ``recover=True`` instead reboots an alerting servo and configures it again (at most 3 times each).
-Shutdown REST after a hardware error: joints with a faulted servo are not commanded, the others go to rest,
-then torque goes off everywhere; a silent joint servo turns torque off at once (see ``_move_to_rest``).
+Faults: a position read keeps the replies that came and asks again (``retries`` times per tick) only the servos
+still missing; a servo still silent after that is *stale* for the tick: its last position stands in, counted in
+:meth:`DynamixelBus.status` (``stale_reads``, ``worst_stale``).  A servo stale for more than ``max_stale_ticks``
+reads in a row, or for more than ``max_stale_fraction`` of the reads in the last second, or silent in any other
+transaction after its retries, or raising a hardware alert, makes the bus refuse further goals and raises
+BusError naming it (and, for staleness, the loss rate seen); close() (or leaving the ``with`` block) then runs
+the shutdown sequence.  ``recover=True`` instead reboots an alerting servo and configures it again (at most 3
+times each).  Shutdown REST after a hardware error: joints with a faulted servo are not commanded, the others go
+to rest, then torque goes off everywhere; a silent joint servo turns torque off at once (see ``_move_to_rest``).
 
 Direction is applied by the servo (Drive Mode bit 0), as Interbotix does: every servo of a joint gets the same
 register value ``2048 + offset + q / RAD_PER_PULSE`` in the same SYNC_WRITE and a reversed servo turns its shaft
@@ -45,6 +49,7 @@ from __future__ import annotations
 import logging
 import math
 import struct
+from collections import deque
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from types import TracebackType
@@ -125,7 +130,13 @@ class DynamixelBus:
             required, there is no default port.
         baud: the bus baud rate, bps; default: the arm's.
         shutdown: what close() does with the arm (HOLD, REST then torque off, OFF).
-        retries: repeats of a failed transaction before it raises (per tick).
+        retries: repeats of a failed transaction before it raises (per tick); a position read repeats only for
+            the servos that did not answer.
+        max_stale_ticks: a position read may miss a servo after its retries: its last position stands in,
+            marked stale, for at most this many reads in a row; one more raises BusError.  0 = a missed read
+            raises at once.
+        max_stale_fraction: BusError too when a servo was stale in more than this fraction of the position reads
+            of the last second (``1 / dt`` reads; 100 without ``dt``).  1.0 turns this check off.
         return_delay_us: Return Delay Time written at connect (0..508 us, 2 us steps; servo default 500).
         profile: velocity- or time-based servo profile.
         profile_velocity: rad/s cap of the servo's own profile (VELOCITY); default each joint's max velocity;
@@ -162,6 +173,8 @@ class DynamixelBus:
         baud: int | None = None,
         shutdown: ShutdownMode | str = ShutdownMode.REST,
         retries: int = 3,
+        max_stale_ticks: int = 10,
+        max_stale_fraction: float = 0.5,
         return_delay_us: int = 0,
         profile: Profile | str = Profile.VELOCITY,
         profile_velocity: float | None = None,
@@ -193,7 +206,15 @@ class DynamixelBus:
             raise ValueError(f"Expected dt > 0 seconds, got {dt}")
         if not rest_speed > 0:
             raise ValueError(f"Expected rest_speed > 0 rad/s, got {rest_speed}")
+        if max_stale_ticks < 0:
+            raise ValueError(f"Expected max_stale_ticks >= 0, got {max_stale_ticks}")
+        if not 0.0 < max_stale_fraction <= 1.0:
+            raise ValueError(f"Expected max_stale_fraction in (0, 1], got {max_stale_fraction}")
         self.retries = retries
+        self.max_stale_ticks = int(max_stale_ticks)
+        self.max_stale_fraction = float(max_stale_fraction)
+        #: reads in the window of max_stale_fraction: one second of ticks
+        self.stale_window = max(1, round(1.0 / dt)) if dt is not None else 100
         self.settings = ServoSettings(
             profile=self.profile,
             profile_velocity=profile_velocity,
@@ -263,6 +284,10 @@ class DynamixelBus:
         self._firmware: dict[int, int] = {}
         self._use_fast = False
         self._pending: GroupRead | None = None  #: a position read sent by request_positions, not yet collected
+        self._last_replies: dict[int, StatusPacket] | None = None  #: the last reply of every joint servo
+        self._stale_run: dict[int, int] = {}  #: servo ID -> stale reads in a row, now (absent: 0)
+        self._stale_history: dict[int, deque[int]] = {}  #: servo ID -> the ticks it was stale in, last second
+        self._reset_stale()
 
     # ------------------------------------------------------------------ Bus protocol
 
@@ -310,6 +335,7 @@ class DynamixelBus:
         self._hardware_errors = {}
         self._recoveries = {}
         self._ticks = 0
+        self._reset_stale()
         try:
             if self.check_latency:
                 check_latency_timer(self.port_name)
@@ -370,13 +396,18 @@ class DynamixelBus:
             retries=0 if link is None else link.retry_count,
             errors=0 if link is None else link.error_count,
             hardware_errors=dict(self._hardware_errors),
+            stale_reads=self._stale_reads,
+            stale_ticks=self._stale_ticks,
+            worst_stale=self._worst_stale,
         )
 
     def read_positions(self) -> np.ndarray:
         """Present joint angles ``(n_joints,) float64`` radians, from the primary servos.
 
         One SYNC_READ (FAST_SYNC_READ when available) of every joint servo (shadows too, so their alerts are
-        seen), retried ``retries`` times; BusError naming the silent servos after that.  A servo with its
+        seen); the servos that did not answer are asked again, ``retries`` times.  A servo still silent then
+        keeps its last position, marked stale (see ``max_stale_ticks``); BusError naming it once it was stale
+        for too long.  A servo with its
         Alert bit set is reported by its hardware error names (or rebooted and configured again with
         ``recover=True``).
         """
@@ -400,7 +431,7 @@ class DynamixelBus:
         link = self._link
         if self._pending is None or link is None:
             raise BusError("no position read in flight: call request_positions() first")
-        replies = self._receive_joint_replies(link)
+        replies = self._receive_joint_replies(link, stale_ok=True)
         self._ticks += 1
         return np.array(
             [
@@ -457,6 +488,11 @@ class DynamixelBus:
         # in position mode resets it into 0..4095 (e-Manual, Present Position(132)): hold the single-turn angle
         pulses = self._read_joint_pulses(check_active=False) % units.PULSES_PER_REV
         self._check_shadows(pulses)
+        # what a stale read falls back on until every servo answered a tick: the single-turn reading
+        self._last_replies = {
+            dxl_id: StatusPacket(dxl_id, 0, int(p).to_bytes(4, "little", signed=True))
+            for dxl_id, p in zip(self._position_requests, pulses.tolist(), strict=True)
+        }
         primary = self._primary_index
         q = np.clip(units.pulses_to_rad(pulses[primary], offset=self._servo_offset[primary]), self.lower, self.upper)
         self._send_goals(link, q.tolist())  # every servo of a joint gets its primary's angle, as write_goals will
@@ -552,25 +588,90 @@ class DynamixelBus:
         self._pending = link.send_group_read(self._position_reads[self._use_fast])
         return self._receive_joint_replies(link)
 
-    def _receive_joint_replies(self, link: Link) -> dict[int, StatusPacket]:
+    def _receive_joint_replies(self, link: Link, *, stale_ok: bool = False) -> dict[int, StatusPacket]:
         """The replies of the position read in flight (``_pending``).  It stays in flight when a Ctrl-C cuts
-        this short, so that close() waits for its replies before it sends anything."""
+        this short, so that close() waits for its replies before it sends anything.
+
+        ``stale_ok`` (the tick path): a servo still silent after the retries gets its last reply instead, marked
+        stale (:meth:`_note_stale`), while ``max_stale_ticks`` allows it."""
         pending = self._pending
         if pending is None:  # pragma: no cover - every caller sent the read first
             raise BusError("no position read in flight")
+        stale_ok = stale_ok and self.max_stale_ticks > 0 and self._last_replies is not None
         try:
-            replies = link.receive_group_read(pending, what="Present Position")
+            replies = link.receive_group_read(pending, what="Present Position", allow_missing=stale_ok)
         except BusError as exc:
             self._pending = None
             self._faulted = str(exc)
             raise
         self._pending = None
+        if len(replies) < len(pending.ids):
+            replies = self._note_stale(link, pending.ids, replies)
+        elif self._stale_run:
+            self._stale_run.clear()
+        if stale_ok:
+            self._last_replies = replies
         if self._use_fast and link.fast_failures >= 3:
             log.warning("FAST_SYNC_READ failed 3 times in a row: using plain SYNC_READ from now on")
             self._use_fast = False
         if link.alerts:
             self._raise_alerts()
         return replies
+
+    def _reset_stale(self) -> None:
+        self._last_replies = None
+        self._stale_run = {}
+        self._stale_history = {}
+        self._stale_reads = 0  #: servo reads that were stale since connect
+        self._stale_ticks = 0  #: position reads with at least one stale servo
+        self._worst_stale = 0  #: the longest run of stale reads of one servo
+
+    def _note_stale(self, link: Link, ids: Sequence[int], replies: dict[int, StatusPacket]) -> dict[int, StatusPacket]:
+        """Some servos of ``ids`` did not answer this read: their last replies stand in, counted as stale; a
+        servo stale too long (``max_stale_ticks`` in a row, ``max_stale_fraction`` of the last second) faults
+        the bus with a BusError naming it and the loss seen."""
+        last = self._last_replies
+        assert last is not None  # receive_group_read raised otherwise
+        missing = [i for i in ids if i not in replies]
+        run, history, tick, window = self._stale_run, self._stale_history, self._ticks, self.stale_window
+        for i in [i for i in run if i in replies]:
+            del run[i]
+        self._stale_ticks += 1
+        self._stale_reads += len(missing)
+        too_long: list[int] = []
+        for i in missing:
+            n = run[i] = run.get(i, 0) + 1
+            self._worst_stale = max(self._worst_stale, n)
+            seen = history.setdefault(i, deque())
+            seen.append(tick)
+            while seen[0] <= tick - window:
+                seen.popleft()
+            if n > self.max_stale_ticks or len(seen) > self.max_stale_fraction * window:
+                too_long.append(i)
+        if too_long:
+            self._faulted = message = self._stale_message(link, too_long)
+            link.error_count += 1
+            raise BusError(message, ids=too_long)
+        log.debug("tick %d: servo %s stale", tick, ", ".join(map(str, missing)))
+        merged = {i: replies[i] if i in replies else last[i] for i in ids}
+        return merged
+
+    def _stale_message(self, link: Link, ids: Sequence[int]) -> str:
+        """Why servos ``ids`` are stale too long: their runs, their share of the last second, the reply loss."""
+        parts = []
+        for i in ids:
+            lost, asked = link.reply_loss(i)
+            stale = len(self._stale_history[i])
+            reads = min(self.stale_window, self._ticks + 1)
+            parts.append(
+                f"{i}: stale {self._stale_run[i]} reads in a row, {stale} of the last {reads} reads "
+                f"({100.0 * stale / reads:.0f}%), {100.0 * lost / max(asked, 1):.0f}% of {asked} replies lost"
+            )
+        limit = f"more than {self.max_stale_ticks} in a row or {100.0 * self.max_stale_fraction:g}% of 1 s"
+        return (
+            f"no status packet (Present Position) at {self.baud} baud after {self.retries + 1} tries per read, "
+            f"too long ({limit}): {'; '.join(parts)}; check the cable, power and the baud rate"
+        )
 
     def _raise_alerts(self) -> None:
         link = self.link

@@ -24,6 +24,7 @@ from drivers.units import pulses_to_rad
 from retarget.bvh import parse_bvh
 from retarget.control.clock import VirtualClock
 from retarget.mapping import MappingConfig, Targets, Workspace, retarget_targets
+from sim.bus import LogEntry
 from sim.server import PtyServer
 
 # ------------------------------------------------------------------ small BVH files
@@ -798,3 +799,23 @@ def angles(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Degrees between rotations ``a`` and ``b`` ``(n, 3, 3)``."""
     m = np.einsum("nji,njk->nik", a, b)
     return np.degrees(np.arccos(np.clip((np.trace(m, axis1=1, axis2=2) - 1) / 2, -1.0, 1.0)))
+
+
+# ---------------------------------------------------------------------------------------------- a noisy bus
+
+#: The SDK's LATENCY_TIMER (ms) for fault tests on the in-process simulated bus: each lost reply costs the SDK's
+#: timeout (2 x LATENCY_TIMER + 2 ms) in real time, while an in-process reply is there at once.
+LOSSY_LATENCY_TIMER_MS = 0
+
+
+def lossy_sdk_timeout(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Shorten the SDK's reply timeout for tests that lose many replies on the in-process bus (not over a pty)."""
+    import dynamixel_sdk.port_handler
+
+    monkeypatch.setattr(dynamixel_sdk.port_handler, "LATENCY_TIMER", LOSSY_LATENCY_TIMER_MS)
+
+
+def sync_read_ids(entries: Sequence[LogEntry]) -> list[list[int]]:
+    """The IDs each SYNC_READ / FAST_SYNC_READ among ``entries`` (the simulator's log) asked, in order."""
+    reads = (Instruction.SYNC_READ, Instruction.FAST_SYNC_READ)
+    return [list(e.params[4:]) for e in entries if e.instruction in reads]

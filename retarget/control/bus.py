@@ -41,6 +41,10 @@ class BusStatus:
     retries: int = 0  #: communication attempts repeated after a failure
     errors: int = 0  #: failures that were raised after the retries ran out
     hardware_errors: Mapping[int, tuple[str, ...]] = field(default_factory=dict)  #: servo ID -> alert names
+    #: servo reads that came back stale: a servo still silent after the retries, its last position standing in
+    stale_reads: int = 0
+    stale_ticks: int = 0  #: position reads with at least one stale servo
+    worst_stale: int = 0  #: the longest run of consecutive stale reads of one servo
 
 
 @runtime_checkable
@@ -59,7 +63,8 @@ class Bus(Protocol):
     def read_positions(self) -> np.ndarray:
         """Present joint angles, ``(n_joints,) float64``, radians.
 
-        Raises ``BusError``; never returns 0 for a failed read.
+        Raises ``BusError``; never returns 0 for a failed read.  A bus may return a servo's last position for a
+        read it missed, counted in ``status().stale_reads``, and raise once it was stale too long.
         """
 
     def request_positions(self) -> None:

@@ -67,8 +67,8 @@ class TickStats(TickSeries):
     """What one :func:`~retarget.control.loop.run_ticks` run did (times seconds, errors metres).
 
     The series, counters, ``wall_time`` and ``run_time`` cover the ticks of slots >= 0 (a clip's ticks);
-    the lead-in's ticks (slots < 0) are counted apart in ``lead_in_*``.  ``bus_errors``/``bus_retries``
-    cover the whole run.
+    the lead-in's ticks (slots < 0) are counted apart in ``lead_in_*``.  ``bus_errors``/``bus_retries`` and
+    the ``stale_*`` counts cover the whole run.
     """
 
     rate: float  #: ticks per second
@@ -78,6 +78,9 @@ class TickStats(TickSeries):
     wall_time: float = 0.0  #: real seconds of the clip's ticks
     bus_errors: int = 0
     bus_retries: int = 0
+    stale_reads: int = 0  #: servo reads that came back stale (the servo's last position stood in)
+    stale_ticks: int = 0  #: read-backs with at least one stale servo
+    worst_stale: int = 0  #: the longest run of consecutive stale reads of one servo (since the bus connected)
     q_cmd: npt.NDArray[np.float64] | None = None  #: the last goals sent ``(n_joints,)`` rad
     q_present: npt.NDArray[np.float64] | None = None  #: the last positions read ``(n_joints,)`` rad
     lead_in_slots: int = 0  #: slots the source's lead-in planned (``-first slot``)
@@ -118,6 +121,9 @@ class TickStats(TickSeries):
             skipped_ticks=self.skipped,
             bus_errors=self.bus_errors,
             bus_retries=self.bus_retries,
+            stale_reads=self.stale_reads,
+            stale_ticks=self.stale_ticks,
+            worst_stale_ticks=self.worst_stale,
             lead_in_ticks=self.lead_in_ticks,
             lead_in_s=self.lead_in_time,
         )

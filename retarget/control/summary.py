@@ -51,6 +51,10 @@ class RunSummary:
     #: the lead-in on a bus, before the clip's clock starts (not counted in anything above but bus errors/retries)
     lead_in_ticks: int = 0
     lead_in_s: float = 0.0  #: loop-clock seconds of the lead-in
+    #: servo reads that missed after the retries (the servo's last position stood in), whole run
+    stale_reads: int = 0
+    stale_ticks: int = 0  #: read-backs with at least one stale servo, whole run
+    worst_stale_ticks: int = 0  #: the longest run of consecutive stale reads of one servo
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dict (floats rounded to 4 decimals)."""
@@ -67,6 +71,12 @@ class RunSummary:
                 f"  lead-in to the clip's first pose: {self.lead_in_s:.2f} s, {self.lead_in_ticks} ticks "
                 "(before the clip; of the counts below only the bus errors and retries include it)"
             ]
+        stale = []
+        if self.stale_reads:
+            stale = [
+                f"  stale reads: {self.stale_reads} (a servo silent after the retries, its last position used) in "
+                f"{self.stale_ticks} ticks; worst {self.worst_stale_ticks} ticks in a row"
+            ]
         return "\n".join(
             [
                 f"{head}: {self.clip} on {self.arm}: {self.frames} frames, {self.duration_s:.2f} s of motion, "
@@ -81,6 +91,7 @@ class RunSummary:
                 f"  bus: {self.bus_errors} errors, {self.bus_retries} retries; "
                 f"tick p50 {self.tick_ms_p50:.3f} ms, p99 {self.tick_ms_p99:.3f} ms, max {self.tick_ms_max:.3f} ms "
                 f"(compute p99 {self.compute_ms_p99:.3f} ms); overruns {self.overruns}, skipped {self.skipped_ticks}",
+                *stale,
             ]
         )
 
@@ -113,6 +124,9 @@ def summarize(
     bus_retries: int = 0,
     lead_in_ticks: int = 0,
     lead_in_s: float = 0.0,
+    stale_reads: int = 0,
+    stale_ticks: int = 0,
+    worst_stale_ticks: int = 0,
 ) -> RunSummary:
     """A :class:`RunSummary` from per-tick arrays ``(n_ticks,)`` (errors metres, times seconds).
 
@@ -155,4 +169,7 @@ def summarize(
         skipped_ticks=int(skipped_ticks),
         lead_in_ticks=int(lead_in_ticks),
         lead_in_s=float(lead_in_s),
+        stale_reads=int(stale_reads),
+        stale_ticks=int(stale_ticks),
+        worst_stale_ticks=int(worst_stale_ticks),
     )

@@ -6,12 +6,13 @@ times seconds or milliseconds; flags 0/1)::
     time_s, clip_time_s, tick, target_x_m, target_y_m, target_z_m,
     <joint>_cmd_rad ...,  <joint>_present_rad ...,
     ik_error_mm, ik_sweeps, ik_converged, tick_ms, compute_ms, bus_ms,
-    clamped, velocity_limited, overrun, bus_retries, lead_in
+    clamped, velocity_limited, overrun, bus_retries, lead_in, stale
 
 ``<joint>_present_rad`` is empty in a dry run (no bus, nothing was read).  ``lead_in`` is 1 on
 the rows of the lead-in to the clip's first pose that a replay on a bus runs before the clip
 (their ``time_s`` and ``tick`` are negative, ``clip_time_s`` is the clip's start, no IK ran:
-``ik_sweeps`` 0, and the target is the clip's first).
+``ik_sweeps`` 0, and the target is the clip's first).  ``stale`` counts the servos whose read-back missed
+that tick after the bus's retries (0: every reading is fresh); their ``_present_rad`` is the last one read.
 
     with TelemetryWriter("run.csv", arm.joint_names) as telemetry:
         ControlLoop(arm, targets, on_tick=telemetry).run(bus)
@@ -27,7 +28,7 @@ from retarget.control.loop import TickRecord
 
 __all__ = ["TelemetryWriter", "telemetry_columns"]
 
-FLAG_COLUMNS = ("clamped", "velocity_limited", "overrun", "bus_retries", "lead_in")
+FLAG_COLUMNS = ("clamped", "velocity_limited", "overrun", "bus_retries", "lead_in", "stale")
 
 
 def telemetry_columns(joint_names: Sequence[str]) -> list[str]:
@@ -112,7 +113,7 @@ class TelemetryWriter:
             f"{r.time:.6f},{r.clip_time:.6f},{r.tick},{target},{cmd},{present},"
             f"{r.ik_error * 1e3:.4f},{r.ik_sweeps},{int(r.ik_converged)},"
             f"{(r.compute_time + r.bus_time) * 1e3:.4f},{r.compute_time * 1e3:.4f},{r.bus_time * 1e3:.4f},"
-            f"{int(r.clamped)},{int(r.velocity_limited)},{int(r.overrun)},{r.bus_retries},{int(r.lead_in)}\n"
+            f"{int(r.clamped)},{int(r.velocity_limited)},{int(r.overrun)},{r.bus_retries},{int(r.lead_in)},{r.stale}\n"
         )
         self._file.flush()
         self.rows += 1

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 
 import numpy as np
 import pytest
@@ -239,13 +240,21 @@ def test_dropped_replies_are_retried(make_bus, arm, clock):
 
 
 @pytest.mark.parametrize("fast_read", [True, False], ids=["fast-sync-read", "sync-read"])
-def test_unplugged_servo_raises_naming_it(make_bus, url, sim_bus, fast_read):
-    bus = make_bus(url, retries=1, fast_read=fast_read, shutdown=ShutdownMode.OFF)
+@pytest.mark.parametrize("max_stale", [0, 3], ids=["no-stale", "stale-3"])
+def test_unplugged_servo_raises_naming_it(make_bus, url, sim_bus, fast_read, max_stale):
+    bus = make_bus(url, retries=1, fast_read=fast_read, shutdown=ShutdownMode.OFF, max_stale_ticks=max_stale)
     bus.connect()
-    sim_bus.servo(5).unplug()
+    before = bus.read_positions()
+    sim_bus.servo(5).unplug()  # a shadow (elbow): its primary 4 still gives the joint's angle
+    for k in range(max_stale):  # its last reading stands in, marked stale, for max_stale_ticks reads
+        np.testing.assert_array_equal(bus.read_positions(), before)
+        assert (bus.status().stale_reads, bus.status().worst_stale) == (k + 1, k + 1)
     with pytest.raises(BusError, match=r"^servo 5: no status packet \(Present Position\) at 1000000 baud") as info:
         bus.read_positions()
     assert info.value.ids == (5,)
+    if max_stale:
+        expected = r"5: stale 4 reads in a row, 4 of the last 5 reads \(80%\), \d+% of \d+ replies lost"
+        assert re.search(expected, str(info.value))
     assert bus.status().errors == 1
     with pytest.raises(BusError, match="faulted"):  # no more goals after an unrecoverable fault
         bus.write_goals(np.zeros(6))

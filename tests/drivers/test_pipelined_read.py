@@ -120,7 +120,12 @@ def test_a_lost_reply_of_a_pipelined_read_is_retried(bus, sim_bus):
 
 
 def test_a_silent_servo_fails_the_collect_by_its_id(bus, sim_bus):
+    still = bus.read_positions()
     sim_bus.servo(4).unplug()
+    for _ in range(bus.max_stale_ticks):  # stale: its last position stands in, the others are read
+        bus.request_positions()
+        np.testing.assert_array_equal(bus.collect_positions(), still)
+    assert bus.status().worst_stale == bus.max_stale_ticks == 10
     bus.request_positions()
     with pytest.raises(BusError, match=r"^servo 4: no status packet \(Present Position\)") as info:
         bus.collect_positions()

@@ -143,7 +143,7 @@ def test_ctrl_c_when_the_last_read_back_fails_still_records_the_tick(arm, sim_bu
 
     config = LoopConfig(lead_in_speed=0.0)
     loop = ControlLoop(arm, circle_targets(arm), config=config, clock=clock, on_tick=on_tick)
-    bus = DynamixelBus(arm, url, clock=clock, shutdown="rest", retries=0)
+    bus = DynamixelBus(arm, url, clock=clock, shutdown="rest", retries=0, max_stale_ticks=0)  # a miss raises
     stats = {}
     with pytest.raises(BusError, match=r"^servo 4: could not turn torque off"):
         with connected_bus(bus):

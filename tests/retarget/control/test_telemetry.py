@@ -46,9 +46,10 @@ def test_columns_name_the_joints_and_units(arm):
     cols = telemetry_columns(arm.joint_names)
     assert cols[:6] == ["time_s", "clip_time_s", "tick", "target_x_m", "target_y_m", "target_z_m"]
     assert "waist_cmd_rad" in cols and "wrist_rotate_present_rad" in cols
-    assert cols[-5:-1] == ["clamped", "velocity_limited", "overrun", "bus_retries"]
-    assert cols[-1] == "lead_in"  # the flag of the lead-in's rows, last
-    assert len(cols) == len(set(cols)) == 6 + 2 * arm.n_joints + 11
+    assert cols[-6:-2] == ["clamped", "velocity_limited", "overrun", "bus_retries"]
+    assert cols[-2] == "lead_in"  # the flag of the lead-in's rows
+    assert cols[-1] == "stale"  # the servos whose read-back missed, last (added after lead_in)
+    assert len(cols) == len(set(cols)) == 6 + 2 * arm.n_joints + 12
 
 
 @pytest.mark.parametrize("present", [True, False], ids=["bus", "dry-run"])
@@ -72,7 +73,7 @@ def test_row_values(arm, present):
     assert float(row["tick_ms"]) == pytest.approx(0.92)
     assert float(row["bus_ms"]) == pytest.approx(0.8)
     assert (row["clamped"], row["velocity_limited"], row["overrun"], row["bus_retries"]) == ("1", "0", "1", "2")
-    assert row["lead_in"] == "0"
+    assert row["lead_in"] == "0" and row["stale"] == "0"
     assert not out.closed  # a stream given by the caller stays open
 
 
@@ -121,3 +122,11 @@ def test_writing_to_a_closed_writer_fails(arm, tmp_path):
 def test_unwritable_path_raises_oserror(arm, tmp_path):
     with pytest.raises(OSError), TelemetryWriter(tmp_path / "missing" / "run.csv", arm.joint_names):
         pass
+
+
+def test_stale_column_counts_the_servos_whose_read_back_missed(arm):
+    out = io.StringIO()
+    with TelemetryWriter(out, arm.joint_names) as telemetry:
+        telemetry(dataclasses.replace(record(arm, present=True), stale=2))
+    (row,) = csv.DictReader(io.StringIO(out.getvalue()))
+    assert row["stale"] == "2" and float(row["waist_present_rad"]) == pytest.approx(-0.499)
