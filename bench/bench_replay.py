@@ -95,8 +95,9 @@ def on_bus(clip: Path, ticks: int) -> None:
     targets = retarget_targets(motion, arm)
     # The servos start on the first target, so the bench measures the clip loop alone: no lead-in
     # (lead_in_speed=0; its ticks would be counted apart from the clip's anyway).  The wire time is measured
-    # unpaced (a rate far above what the bus allows) on the virtual clock, where only the wire moves time.
-    unpaced = LoopConfig(rate=100_000.0, loop=True, max_ticks=ticks, lead_in_speed=0.0)
+    # unpaced on the virtual clock, where only the wire moves time: at the loop's top rate (1 kHz) every tick of
+    # this bus (about 1.06 ms of wire time) overruns its slot, so the loop never sleeps (checked below).
+    unpaced = LoopConfig(rate=LoopConfig.RATE_RANGE[1], loop=True, max_ticks=ticks, lead_in_speed=0.0)
     q0 = ControlLoop(arm, targets, config=unpaced).initial_pose()
 
     def run(clock, config: LoopConfig, *, pipeline: bool = True) -> tuple[float, np.ndarray, np.ndarray, int]:
@@ -129,6 +130,10 @@ def on_bus(clip: Path, ticks: int) -> None:
     run(VirtualClock(), unpaced)  # warm-up
     virtual, _, _, n = run(VirtualClock(), unpaced)
     wire_period = virtual / n
+    if wire_period <= 1.0 / unpaced.rate:
+        print(
+            f"   note: the wire time per tick is below the loop's top rate's slot; {wire_period * 1e3:.3f} ms is paced"
+        )
     at_wire_rate = LoopConfig(rate=1.0 / wire_period, loop=True, max_ticks=ticks, lead_in_speed=0.0)
     _, periods, bus_s, n_real = run(MonotonicClock(), at_wire_rate)
     period = float(np.median(periods))

@@ -45,10 +45,23 @@ A servo table has ``id`` (0-252, unique over the arm), ``model`` (one of
 ``retarget.arm.SERVO_MODELS``), ``direction`` (+1 normal, -1 reverse; default +1) and
 ``offset`` (zero offset in ticks, -2048..2048, default 0: 0 rad = 2048 + offset ticks).
 
+Every number has a physical range, so that an arm file this reader accepts also
+runs (``MAX_LENGTH``, ``MAX_ANGLE``, ``MIN_VELOCITY``/``MAX_VELOCITY``,
+``SUPPORTED_BAUDS``):
+
+- lengths (``xyz`` of joints and tool): each coordinate within +-10 m;
+- angles (``rpy``, ``limits``, gripper ``limits``, poses): within +-360 degrees;
+- ``max_velocity``: 0.1 to 1000 deg/s (the fastest supported servo, the XL330-M288, turns
+  at 618 deg/s without load);
+- ``baud``: one the servos and dynamixel-sdk support: 9600, 57600, 115200, 1, 2, 3
+  or 4 Mbps (``retarget.arm.model.SUPPORTED_BAUDS``; not 4.5 Mbps, which the SDK
+  refuses and the XL330-M288 lacks);
+- ``axis``: any finite non-zero vector (its length is computed without overflow).
+
 Every problem is a :class:`~retarget.errors.ConfigError` naming the file, the key
 path (``joints[2].limits``) and the bad value: unknown keys, missing keys, wrong
 types, unknown servo models, ``lower >= upper``, duplicate servo IDs, a zero axis,
-a pose outside the limits, TOML syntax errors (with the line).
+a pose outside the limits, a number outside its range, TOML syntax errors (with the line).
 """
 
 from __future__ import annotations
@@ -63,7 +76,7 @@ from typing import Any, TypeGuard
 
 import numpy as np
 
-from retarget.arm.model import SERVO_MODELS, Arm, Gripper, Joint, JointType, Servo
+from retarget.arm.model import SERVO_MODELS, SUPPORTED_BAUDS, Arm, Gripper, Joint, JointType, Servo
 from retarget.errors import ConfigError
 
 __all__ = ["URDF_SUFFIXES", "ArmFileReader", "arm_dirs", "is_urdf", "list_arms", "read_toml", "resolve_arm"]
@@ -79,6 +92,12 @@ _GRIPPER_KEYS = {"name", "servo", "limits"}
 _TOOL_KEYS = {"link", "xyz", "rpy"}
 _POSE_KEYS = {"home", "rest"}
 _MISSING = object()
+
+#: The physical ranges of an arm file's numbers (see the module notes).
+MAX_LENGTH = 10.0  #: metres, each coordinate of an ``xyz``
+MAX_ANGLE = 360.0  #: degrees, every angle (rpy, limits, poses)
+MIN_VELOCITY, MAX_VELOCITY = 0.1, 1000.0  #: deg/s, ``max_velocity``
+DEFAULT_BAUD = 1_000_000
 
 
 def arm_dirs() -> list[Path]:
@@ -136,7 +155,15 @@ def read_toml(path: Path) -> dict[str, Any]:
 
 
 def _is_number(v: object) -> TypeGuard[int | float]:
-    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+    """A finite int or float (an int compared exactly: ``math.isfinite`` overflows on a huge TOML integer)."""
+    if isinstance(v, bool):
+        return False
+    if isinstance(v, int):
+        return -_FLOAT_MAX <= v <= _FLOAT_MAX
+    return isinstance(v, float) and math.isfinite(v)
+
+
+_FLOAT_MAX = 1.7976931348623157e308
 
 
 class ArmFileReader:
@@ -174,6 +201,22 @@ class ArmFileReader:
             raise self.error("expected a number > 0", key, value)
         return float(value)
 
+    def velocity(self, value: object, key: str) -> float:
+        """A ``max_velocity`` in deg/s, ``MIN_VELOCITY..MAX_VELOCITY``, as rad/s."""
+        deg = self.number(value, key, positive=True)
+        if not MIN_VELOCITY <= deg <= MAX_VELOCITY:
+            raise self.error(f"expected a velocity from {MIN_VELOCITY:g} to {MAX_VELOCITY:g} deg/s", key, value)
+        return math.radians(deg)
+
+    def baud(self, value: object, key: str = "baud") -> int:
+        """A bus baud rate the servos support (``SUPPORTED_BAUDS``)."""
+        if not isinstance(value, int) or isinstance(value, bool):
+            raise self.error("expected an integer", key, value)
+        if value not in SUPPORTED_BAUDS:
+            rates = ", ".join(str(b) for b in SUPPORTED_BAUDS)
+            raise self.error(f"expected a baud rate the servos and dynamixel-sdk support: {rates}", key, value)
+        return value
+
     def integer(self, value: object, key: str, lo: int, hi: int) -> int:
         if not isinstance(value, int) or isinstance(value, bool):
             raise self.error("expected an integer", key, value)
@@ -192,27 +235,33 @@ class ArmFileReader:
             raise self.error(f"expected a list of {n} numbers", key, value)
         return value
 
-    def vector(self, value: object, key: str, n: int = 3) -> tuple[float, ...]:
-        return tuple(float(v) for v in self._numbers(value, key, n))
+    def vector(
+        self, value: object, key: str, n: int = 3, *, bound: float | None = None, unit: str = ""
+    ) -> tuple[float, ...]:
+        """``n`` finite numbers, each within ``+-bound`` when given."""
+        numbers = self._numbers(value, key, n)
+        if bound is not None and not all(abs(v) <= bound for v in numbers):
+            raise self.error(f"expected numbers from {-bound:g} to {bound:g}{unit}", key, value)
+        return tuple(float(v) for v in numbers)
 
     def xyz(self, value: object, key: str) -> tuple[float, float, float]:
-        """A point or offset: a list of 3 numbers (metres)."""
-        x, y, z = self.vector(value, key)
+        """A point or offset: a list of 3 numbers (metres, each within ``MAX_LENGTH``)."""
+        x, y, z = self.vector(value, key, bound=MAX_LENGTH, unit=" m")
         return (x, y, z)
 
     def degrees3(self, value: object, key: str) -> tuple[float, float, float]:
-        x, y, z = self.vector(value, key)
+        x, y, z = self.vector(value, key, bound=MAX_ANGLE, unit=" deg")
         return (math.radians(x), math.radians(y), math.radians(z))
 
     def axis(self, value: object, key: str) -> tuple[float, float, float]:
         x, y, z = self.vector(value, key)
-        norm = math.sqrt(x * x + y * y + z * z)
-        if norm < 1e-9:
+        norm = math.hypot(x, y, z)  # no overflow for huge components, no underflow to 0 for tiny ones
+        if not 1e-9 <= norm < math.inf:
             raise self.error("joint axis has zero length", key, value)
         return (x / norm, y / norm, z / norm)
 
     def limits(self, value: object, key: str) -> tuple[float, float]:
-        lo, hi = self.vector(value, key, 2)
+        lo, hi = self.vector(value, key, 2, bound=MAX_ANGLE, unit=" deg")
         if lo >= hi:
             raise self.error("lower limit must be below upper limit", key, value)
         return math.radians(lo), math.radians(hi)
@@ -285,7 +334,7 @@ class ArmFileReader:
             axis=self.axis(t["axis"], f"{key}.axis"),
             lower=lo,
             upper=hi,
-            max_velocity=math.radians(self.number(t["max_velocity"], f"{key}.max_velocity", positive=True)),
+            max_velocity=self.velocity(t["max_velocity"], f"{key}.max_velocity"),
             servos=self.servos(t["servos"], f"{key}.servos"),
         )
 
@@ -294,7 +343,7 @@ class ArmFileReader:
         t = self.table(data, "", _TOP_KEYS, ("name", "joints", "poses"))
         name = self.string(t["name"], "name")
         title = self.string(t.get("title", name), "title")
-        baud = self.integer(t.get("baud", 1_000_000), "baud", 9600, 10_500_000)
+        baud = self.baud(t.get("baud", DEFAULT_BAUD))
         raw_joints = t["joints"]
         if not isinstance(raw_joints, list) or not raw_joints:
             raise self.error("expected at least one [[joints]] table", "joints", raw_joints)

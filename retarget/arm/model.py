@@ -26,6 +26,15 @@ from retarget.arm.kinematics import Chain
 #: Servo models the arm descriptions may name; ``drivers.control_table`` holds their registers.
 SERVO_MODELS: tuple[str, ...] = ("XL430-W250", "XM430-W350", "XL330-M288", "XM540-W270")
 
+#: The bus baud rates (bps) the servos support, by their Baud Rate (8) register value 0..7: ROBOTIS e-Manual,
+#: X series control table, Baud Rate (8) (``docs/en/dxl/x/xl430-w250.md`` and siblings; summarised in
+#: ``shared/reference/dynamixel.md`` section 3).  Kept here, not imported from ``drivers`` (the arm layer knows
+#: nothing above it); a test checks it equals ``drivers.control_table.BAUD_RATES``.
+SERVO_BAUDS: tuple[int, ...] = (9600, 57600, 115200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000)
+#: The baud rates an arm file may ask for: :data:`SERVO_BAUDS` without 4.5 Mbps, which dynamixel-sdk's
+#: ``PortHandler.setBaudRate`` refuses (its list stops at 4 Mbps) and the XL330-M288 lacks (Baud Rate 0..6).
+SUPPORTED_BAUDS: tuple[int, ...] = tuple(b for b in SERVO_BAUDS if b <= 4_000_000)
+
 Vec3 = tuple[float, float, float]
 
 

@@ -48,7 +48,15 @@ from typing import Any
 
 import numpy as np
 
-from retarget.arm.config import ArmFileReader, read_toml
+from retarget.arm.config import (
+    DEFAULT_BAUD,
+    MAX_ANGLE,
+    MAX_LENGTH,
+    MAX_VELOCITY,
+    MIN_VELOCITY,
+    ArmFileReader,
+    read_toml,
+)
 from retarget.arm.kinematics import matrix_rpy, transform
 from retarget.arm.model import Arm, Joint
 from retarget.errors import ConfigError
@@ -271,6 +279,10 @@ def load_urdf_arm(
     joints: list[Joint] = []
     pending = np.eye(4)
     for uj in chain:
+        if any(abs(v) > MAX_LENGTH for v in uj.xyz):
+            raise model.error(
+                f"expected an origin within +-{MAX_LENGTH:g} m", key=f"joint[{uj.name}].origin.xyz", value=uj.xyz
+            )
         T = pending @ transform(uj.xyz, uj.rpy)
         if uj.type == "fixed":
             pending = T
@@ -291,15 +303,28 @@ def load_urdf_arm(
                 raise model.error(
                     "lower limit must be below upper limit", key=f"joint[{uj.name}].limit", value=(uj.lower, uj.upper)
                 )
+            if max(-uj.lower, uj.upper) > math.radians(MAX_ANGLE):
+                raise model.error(
+                    f"expected limits within +-{math.radians(MAX_ANGLE):g} rad ({MAX_ANGLE:g} deg)",
+                    key=f"joint[{uj.name}].limit",
+                    value=(uj.lower, uj.upper),
+                )
             lower, upper = uj.lower, uj.upper
         if "max_velocity" in entry:
-            velocity = math.radians(reader.number(entry["max_velocity"], f"{key}.max_velocity", positive=True))
+            velocity = reader.velocity(entry["max_velocity"], f"{key}.max_velocity")
         elif uj.velocity is not None and uj.velocity > 0:
             velocity = uj.velocity
+            if not math.radians(MIN_VELOCITY) <= velocity <= math.radians(MAX_VELOCITY):
+                raise model.error(
+                    f"expected a velocity from {math.radians(MIN_VELOCITY):.4g} to {math.radians(MAX_VELOCITY):.4g}"
+                    f" rad/s ({MIN_VELOCITY:g} to {MAX_VELOCITY:g} deg/s); or set max_velocity (deg/s) in {spath.name}",
+                    key=f"joint[{uj.name}].limit.velocity",
+                    value=velocity,
+                )
         else:
             raise reader.error("the URDF gives no velocity for this joint: set max_velocity (deg/s)", key)
-        norm = math.sqrt(sum(a * a for a in uj.axis))
-        if norm < 1e-9:
+        norm = math.hypot(*uj.axis)  # no overflow for huge components
+        if not 1e-9 <= norm < math.inf:
             raise model.error("joint axis has zero length", key=f"joint[{uj.name}].axis", value=uj.axis)
         joints.append(
             Joint(
@@ -319,6 +344,8 @@ def load_urdf_arm(
     else:
         home = rest = tuple(min(max(0.0, j.lower), j.upper) for j in joints_t)
     name = reader.string(data.get("name", model.name), "name")
+    baud = reader.baud(data.get("baud", DEFAULT_BAUD))
+    gripper = reader.gripper(data["gripper"]) if "gripper" in data else None
     return Arm(
         name=name,
         title=reader.string(data.get("title", name), "title"),
@@ -327,8 +354,8 @@ def load_urdf_arm(
         tool_rpy=matrix_rpy(pending[:3, :3]),
         home=np.array(home, dtype=np.float64),
         rest=np.array(rest, dtype=np.float64),
-        baud=reader.integer(data.get("baud", 1_000_000), "baud", 9600, 10_500_000),
-        gripper=reader.gripper(data["gripper"]) if "gripper" in data else None,
+        baud=baud,
+        gripper=gripper,
         mapping=reader.mapping(data.get("mapping", {})),
         source=path,
     )

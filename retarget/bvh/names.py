@@ -66,7 +66,16 @@ _SIDE_WORD = re.compile(r"left|right", re.IGNORECASE)
 _SIDE_SEPARATED = re.compile(r"(?:^|(?<=[._\s-]))([LlRr])(?=$|[._\s-])")
 _SIDE_LEADING = re.compile(rf"(?:^|(?<={_SEP}))([lLrR])(?=[A-Z_])")
 _SIDE_TRAILING = re.compile(r"(?<=[a-z])([LR])$")
-_TRAILING_NUMBER = re.compile(r"(\d+)$")
+_DIGITS = "0123456789"
+
+
+def _trailing_number(text: str) -> tuple[str, str]:
+    """``text`` split before its trailing ASCII digits: ``("hand", "01")`` for ``"hand01"``.  Linear, unlike
+    ``re.search(r"[0-9]+$")``, which retries from every digit of a long run (quadratic); never ``int()``."""
+    stem = text.rstrip(_DIGITS)
+    return stem, text[len(stem) :]
+
+
 _TOKENS = re.compile(r"[A-Z]?[a-z]+|[A-Z]+(?![a-z])")
 
 #: A wrist candidate below a forearm: ``(penalty, links, index, is an End Site, name)``.
@@ -122,13 +131,12 @@ def role_of(rest: str) -> tuple[str | None, int]:
     """
     text = squash(rest)
     penalty = 0
-    m = _TRAILING_NUMBER.search(text)
-    if m:
-        number = int(m.group(1))
-        if number >= 2:
+    stem, digits = _trailing_number(text)
+    if digits:
+        if digits.lstrip("0") not in ("", "1"):  # the number is 2 or more (compared without int(): any length)
             return None, 0
-        penalty = 0 if m.group(1) == "01" else 1
-        text = text[: m.start()]
+        penalty = 0 if digits == "01" else 1
+        text = stem
     if text.endswith("bend"):  # DAZ Genesis: lShldrBend is the upper arm, lShldrTwist a twist bone
         text = text[: -len("bend")]
     chunk = re.split(r"[^a-z0-9]+", rest.lower().strip(" ._-"))[-1]  # the last word: "farm" in "Skeleton1_ FArm"
@@ -151,7 +159,7 @@ def joint_roles(joint_names: Sequence[str]) -> list[tuple[str | None, str | None
 
 def is_twist(name: str) -> bool:
     """A twist or roll bone by its name (``lShldrTwist``, ``LeftForeArmRoll``, ``upperarm_twist_01_l``)."""
-    text = _TRAILING_NUMBER.sub("", squash(base_name(name)))
+    text = _trailing_number(squash(base_name(name)))[0]
     return "twist" in text or text.endswith("roll")
 
 
@@ -160,7 +168,7 @@ def not_arm_kind(name: str) -> str | None:
     base = base_name(name)
     tokens = [t.lower() for t in _TOKENS.findall(base)]
     tokens += [t[1:] for t in tokens if len(t) > 2 and t[0] in "lr"]
-    text = re.sub(r"\d+$", "", squash(base))
+    text = _trailing_number(squash(base))[0]
     for kind, words in _NOT_ARM:
         if any(t in words for t in tokens) or any(text.endswith(w) for w in words):
             return kind

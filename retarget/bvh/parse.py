@@ -32,7 +32,16 @@ line and saying what was expected and what was found, e.g.
 - a value that is not a decimal number (``nan``, ``inf``, ``1,5``), one that
   overflows (``1e999``) or is larger in magnitude than ``MAX_VALUE`` (1e12:
   far past any capture; it keeps FK finite), and a frame time outside
-  ``MIN_FRAME_TIME`` to ``MAX_FRAME_TIME`` (1e-6 to 1e6 seconds).
+  ``MIN_FRAME_TIME`` to ``MAX_FRAME_TIME`` (1e-4 to 10 seconds: 10 kHz to
+  0.1 fps);
+- a number token longer than ``MAX_TOKEN`` (100) characters, a count
+  (``Frames:``, ``CHANNELS``) of more than 18 digits, a header line longer
+  than ``MAX_HEADER_LINE`` (4096) bytes, a file larger than
+  ``MAX_FILE_BYTES`` (1 GiB).  Messages quote at most 40 characters of a
+  token, so a huge one never makes a huge error line.
+
+Every regex is linear in its input (no nested or adjacent repeats of the
+same characters), so no token, however long, takes quadratic time.
 
 The first problem in file order is the one reported.  The parser never
 loops on a short file and never returns partial data.
@@ -53,9 +62,11 @@ from __future__ import annotations
 import logging
 import math
 import mmap
+import os
 import re
 from os import PathLike
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 
@@ -74,7 +85,7 @@ _CHANNEL_LOOKUP = {name.lower(): name for name in CHANNEL_NAMES}
 
 _FRAMES_RE = re.compile(r"Frames\s*:\s*(\S*)\s*", re.IGNORECASE)
 _FRAME_TIME_RE = re.compile(r"Frame\s+Time\s*:\s*(\S*)\s*", re.IGNORECASE)
-_NUMBER = rb"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
+_NUMBER = rb"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?"  # unambiguous: linear, even on a failing match
 _NUMBER_RE = re.compile(_NUMBER)
 _NUMBERS_RE = re.compile(rb"(?:%s\n)*%s" % (_NUMBER, _NUMBER))  # newline-separated
 _NONFINITE_RE = re.compile(rb"[+-]?(?:nan|inf|infinity)(?:\(\w*\))?", re.IGNORECASE)
@@ -84,8 +95,20 @@ _NONFINITE_RE = re.compile(rb"[+-]?(?:nan|inf|infinity)(?:\(\w*\))?", re.IGNOREC
 #: FK and the mapping compute stays finite, however deep the skeleton.
 MAX_VALUE = 1e12
 _TOO_BIG = f"Expected a number from {-MAX_VALUE:g} to {MAX_VALUE:g}"
-#: The range of ``Frame Time`` (seconds): 1 MHz to one frame in 11 days, so that fps and duration stay finite.
-MIN_FRAME_TIME, MAX_FRAME_TIME = 1e-6, 1e6
+#: The range of ``Frame Time`` (seconds): 10 kHz to 0.1 fps, past any capture system, so that the clip's duration
+#: and the number of control ticks stay plausible (``1e300`` made export and replay run forever).
+MIN_FRAME_TIME, MAX_FRAME_TIME = 1e-4, 10.0
+#: The longest number token (characters): ``%.17g`` takes 24; longer ones are an error, not quadratic regex work.
+MAX_TOKEN = 100
+#: The most digits of a count (``Frames:``, ``CHANNELS``): ``int()`` refuses over 4300, and 18 already means
+#: a file of exabytes.
+_MAX_COUNT_DIGITS = 18
+#: The longest line of the hierarchy and MOTION header (bytes); real ones are under 200.
+MAX_HEADER_LINE = 4096
+#: The largest file read (bytes): ~1 hour of a 60-joint skeleton at 120 fps; ``/dev/zero`` or an endless pipe
+#: stops here.
+MAX_FILE_BYTES = 1 << 30
+_READ_CHUNK = 1 << 20
 
 
 def load_bvh(path: str | PathLike[str]) -> Motion:
@@ -112,11 +135,35 @@ def load_bvh(path: str | PathLike[str]) -> Motion:
     """
     p = Path(path)
     with open(p, "rb") as f:
+        size = os.fstat(f.fileno()).st_size
+        if size > MAX_FILE_BYTES:
+            raise _too_large(p)
         try:  # map the file: its pages come from the page cache, not a fresh copy
             data: bytes | mmap.mmap = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
-        except (OSError, ValueError):  # empty, or not mappable (a pipe, /proc): read it
-            data = f.read()
+        except (OSError, ValueError):  # empty, or not mappable (a pipe, /proc, /dev/zero): read it, bounded
+            data = _read_bounded(f, p)
     return _parse(data, path=p)
+
+
+def _too_large(path: Path) -> BvhError:
+    return BvhError(f"Expected a BVH file of at most {MAX_FILE_BYTES >> 20} MiB, got more", path=path, line=1)
+
+
+def _read_bounded(f: BinaryIO, path: Path) -> bytes:
+    """At most ``MAX_FILE_BYTES`` of a stream; a first chunk with a NUL byte is returned alone (binary data: the
+    parser then says so, without reading on)."""
+    chunks: list[bytes] = []
+    total = 0
+    while True:
+        chunk = f.read(_READ_CHUNK)
+        if not chunk:
+            return b"".join(chunks)
+        chunks.append(chunk)
+        total += len(chunk)
+        if total > MAX_FILE_BYTES:
+            raise _too_large(path)
+        if b"\0" in chunk:  # not text: the parser reports the first NUL's line from what is read so far
+            return b"".join(chunks)
 
 
 def parse_bvh(text: str | bytes, *, path: str | PathLike[str] | None = None) -> Motion:
@@ -270,9 +317,12 @@ class _Header:
         """The next non-blank line, stripped; None at the end of the file."""
         data = self.data
         while self.pos < len(data):
-            end = data.find(b"\n", self.pos)
+            end = data.find(b"\n", self.pos, self.pos + MAX_HEADER_LINE + 1)  # bounded: never scans a huge line
             if end < 0:
                 end = len(data)
+                if end - self.pos > MAX_HEADER_LINE:
+                    self.line += 1
+                    raise self._error(f"Expected a header line of at most {MAX_HEADER_LINE} bytes, got more")
             raw = data[self.pos : end]
             self.pos = end + 1
             self.line += 1
@@ -332,18 +382,19 @@ class _Header:
         joint = _Joint(name, parent, opened_line)
         index = len(self.joints)
         self.joints.append(joint)
+        shown = _show(name, _EXCERPT)
         if not brace:
-            self._open_brace(f"{keyword} {name!r}")
+            self._open_brace(f"{keyword} {shown}")
         while True:
-            text = self._expect_line(f"'}}' to close {keyword} {name!r} (opened at line {opened_line})")
+            text = self._expect_line(f"'}}' to close {keyword} {shown} (opened at line {opened_line})")
             kw = _keyword(text)
             if kw == "OFFSET":
                 if joint.offset is not None:
-                    raise self._error(f"Expected one OFFSET in {keyword} {name!r}, got a second one")
+                    raise self._error(f"Expected one OFFSET in {keyword} {shown}, got a second one")
                 joint.offset = self._offset(text)
             elif kw == "CHANNELS":
                 if joint.channel_names is not None:
-                    raise self._error(f"Expected one CHANNELS line in {keyword} {name!r}, got a second one")
+                    raise self._error(f"Expected one CHANNELS line in {keyword} {shown}, got a second one")
                 joint.channel_names = self._channels(text)
                 joint.first_column = self.n_channels
                 self.n_channels += len(joint.channel_names)
@@ -358,20 +409,24 @@ class _Header:
                 return
             elif kw in ("MOTION", "ROOT"):
                 raise self._error(
-                    f"Expected '}}' to close {keyword} {name!r} (opened at line {opened_line}), got {_show(text)}"
+                    f"Expected '}}' to close {keyword} {shown} (opened at line {opened_line}), got {_show(text)}"
                 )
             elif text.startswith("}"):
                 raise self._error(f"Expected '}}' alone on its line, got {_show(text)}")
             else:
                 raise self._error(
-                    f"Expected OFFSET, CHANNELS, JOINT, End Site or '}}' in {keyword} {name!r}, got {_show(text)}"
+                    f"Expected OFFSET, CHANNELS, JOINT, End Site or '}}' in {keyword} {shown}, got {_show(text)}"
                 )
 
     def _require_header(self, joint: _Joint, keyword: str) -> None:
         if joint.offset is None:
-            raise self._error(f"Expected OFFSET in {keyword} {joint.name!r} (line {joint.line}) before its children")
+            raise self._error(
+                f"Expected OFFSET in {keyword} {_show(joint.name, _EXCERPT)} (line {joint.line}) before its children"
+            )
         if joint.channel_names is None:
-            raise self._error(f"Expected CHANNELS in {keyword} {joint.name!r} (line {joint.line}) before its children")
+            raise self._error(
+                f"Expected CHANNELS in {keyword} {_show(joint.name, _EXCERPT)} (line {joint.line}) before its children"
+            )
 
     def _open_brace(self, what: str) -> None:
         text = self._expect_line(f"'{{' after {what}")
@@ -406,20 +461,31 @@ class _Header:
         return self._number(words[0], "OFFSET"), self._number(words[1], "OFFSET"), self._number(words[2], "OFFSET")
 
     def _number(self, word: str, where: str) -> float:
+        if len(word) > MAX_TOKEN:
+            raise self._error(_too_long(word))
         if not _NUMBER_RE.fullmatch(word.encode("utf-8", "replace")):
-            raise self._error(f"Expected a number in {where}, got {word!r}")
+            raise self._error(f"Expected a number in {where}, got {_show(word, _EXCERPT)}")
         value = float(word)
         if not math.isfinite(value):
-            raise self._error(f"Expected a finite number in {where}, got {word!r}")
+            raise self._error(f"Expected a finite number in {where}, got {_show(word, _EXCERPT)}")
         if abs(value) > MAX_VALUE:
-            raise self._error(f"{_TOO_BIG} in {where}, got {word!r}")
+            raise self._error(f"{_TOO_BIG} in {where}, got {_show(word, _EXCERPT)}")
         return value
+
+    def _count(self, word: str, what: str) -> int:
+        """``word`` as a count: ASCII digits, at most ``_MAX_COUNT_DIGITS`` of them."""
+        if not _is_count(word):
+            raise self._error(f"Expected {what}, got {_show(word, _EXCERPT)}")
+        if len(word) > _MAX_COUNT_DIGITS:
+            raise self._error(
+                f"Expected {what} of at most {_MAX_COUNT_DIGITS} digits, "
+                f"got {_show(word, _EXCERPT)} ({len(word)} digits)"
+            )
+        return int(word)
 
     def _channels(self, text: str) -> tuple[str, ...]:
         words = text.split()[1:]
-        if not words or not _is_count(words[0]):
-            raise self._error(f"Expected a channel count after CHANNELS, got {_show(' '.join(words[:1]) or '')}")
-        count = int(words[0])
+        count = self._count(words[0] if words else "", "a channel count after CHANNELS")
         names = words[1:]
         if len(names) != count:
             raise self._error(f"Expected {count} channel names after 'CHANNELS {count}', got {len(names)}")
@@ -427,7 +493,7 @@ class _Header:
         for name in names:
             channel = _CHANNEL_LOOKUP.get(name.lower())
             if channel is None:
-                raise self._error(f"Expected a channel name ({', '.join(CHANNEL_NAMES)}), got {name!r}")
+                raise self._error(f"Expected a channel name ({', '.join(CHANNEL_NAMES)}), got {_show(name, _EXCERPT)}")
             if channel.endswith("position") and channel in canonical:
                 raise self._error(f"Expected each position channel once, got {channel} twice")
             canonical.append(channel)
@@ -438,23 +504,24 @@ class _Header:
         m = _FRAMES_RE.fullmatch(text)
         if not m:
             raise self._error(f"Expected 'Frames: <count>' after MOTION, got {_show(text)}")
-        if not _is_count(m.group(1)):
-            raise self._error(f"Expected a whole number of frames, got {m.group(1)!r}")
-        self.n_frames = int(m.group(1))
+        self.n_frames = self._count(m.group(1), "a whole number of frames")
         text = self._expect_line("'Frame Time: <seconds>' after Frames")
         m = _FRAME_TIME_RE.fullmatch(text)
         if not m:
             raise self._error(f"Expected 'Frame Time: <seconds>' after Frames, got {_show(text)}")
         word = m.group(1)
+        if len(word) > MAX_TOKEN:
+            raise self._error(_too_long(word))
         try:
             frame_time = float(word) if _NUMBER_RE.fullmatch(word.encode("utf-8", "replace")) else math.nan
         except ValueError:
             frame_time = math.nan
         if not (math.isfinite(frame_time) and frame_time > 0):
-            raise self._error(f"Expected a positive frame time in seconds, got {word!r}")
+            raise self._error(f"Expected a positive frame time in seconds, got {_show(word, _EXCERPT)}")
         if not MIN_FRAME_TIME <= frame_time <= MAX_FRAME_TIME:
             raise self._error(
-                f"Expected a frame time from {MIN_FRAME_TIME:g} to {MAX_FRAME_TIME:g} seconds, got {word!r}"
+                f"Expected a frame time from {MIN_FRAME_TIME:g} to {MAX_FRAME_TIME:g} seconds, "
+                f"got {_show(word, _EXCERPT)}"
             )
         self.frame_time = frame_time
         self.data_start = min(self.pos, len(self.data))
@@ -484,6 +551,15 @@ def _name_and_brace(text: str, keyword: str) -> tuple[str, bool]:
 
 def _show(text: str, limit: int = 60) -> str:
     return repr(text if len(text) <= limit else text[:limit] + "...")
+
+
+_EXCERPT = 40  #: characters of a token quoted in an error
+
+
+def _too_long(word: str, length: int | None = None) -> str:
+    """The message for a token of ``length`` characters (default ``len(word)``) that starts with ``word``."""
+    n = len(word) if length is None else length
+    return f"Expected a number of at most {MAX_TOKEN} characters, got {_show(word, _EXCERPT)} ({n} characters)"
 
 
 # ----------------------------------------------------------------------------------------------- MOTION
@@ -638,6 +714,14 @@ def _read_slow_tokens(
     index = np.flatnonzero(slow)
     if index.size == 0:
         return None
+    long = np.flatnonzero(ends[index] - starts[index] > MAX_TOKEN)
+    if long.size:  # read only the tokens before the first long one: an earlier bad token is reported first
+        first_long = int(index[long[0]])
+        found = _read_slow_tokens(block, starts, ends, values, slow & (np.arange(slow.size) < first_long))
+        if found is not None:
+            return found
+        head = bytes(block[starts[first_long] : starts[first_long] + _EXCERPT + 1]).decode("utf-8", "replace")
+        return first_long, _too_long(head, int(ends[first_long] - starts[first_long]))
     words = [bytes(block[s:e]) for s, e in zip(starts[index].tolist(), ends[index].tolist(), strict=True)]
     if _NUMBERS_RE.fullmatch(b"\n".join(words)):
         read = np.array(words).astype(np.float64)
@@ -653,13 +737,13 @@ def _read_slow_tokens(
             if abs(value) <= MAX_VALUE:
                 continue
             return i, _bad_number(word, value)
-        shown = word.decode("utf-8", "replace")
+        shown = _show(word.decode("utf-8", "replace"), _EXCERPT)
         if _NONFINITE_RE.fullmatch(word):
-            return i, f"Expected a finite number, got {shown!r}"
-        return i, f"Expected a number, got {shown!r}"
+            return i, f"Expected a finite number, got {shown}"
+        return i, f"Expected a number, got {shown}"
     raise AssertionError("unreachable: the joined tokens failed the regex but each one passed")
 
 
 def _bad_number(word: bytes, value: float) -> str:
     """The message for a number token that reads as ``value``, infinite or beyond ``MAX_VALUE``."""
-    return f"{'Expected a finite number' if math.isinf(value) else _TOO_BIG}, got {_show(word.decode())}"
+    return f"{'Expected a finite number' if math.isinf(value) else _TOO_BIG}, got {_show(word.decode(), _EXCERPT)}"

@@ -9,7 +9,7 @@ from typing import Any
 from drivers.control_table import parse_ids
 from drivers.scan import ALL_BAUDS, scan
 from retarget.cli import print_json
-from retarget.errors import BusError
+from retarget.errors import BusError, ConfigError
 
 EPILOG = """\
 examples:
@@ -47,6 +47,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
 
+    if args.baud is not None and args.baud not in ALL_BAUDS:  # a bad option (exit 2), not a port failure (4)
+        rates = ", ".join(map(str, sorted(ALL_BAUDS)))
+        raise ConfigError(f"Expected a baud rate a servo can use: {rates}", key="--baud", value=args.baud)
     ids = parse_ids(args.ids)
     bauds = ALL_BAUDS if args.all_bauds else (args.baud if args.baud is not None else 1_000_000,)
     found = scan(

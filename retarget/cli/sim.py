@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import math
 import signal
 import sys
 import threading
 from typing import Any
 
 from drivers.control_table import parse_ids
+from retarget.arm.model import SERVO_BAUDS, SERVO_MODELS
 from retarget.cli._arm import add_link_arguments, load_arm_option
 from retarget.control.clock import MonotonicClock
 from retarget.errors import ConfigError
@@ -89,9 +91,76 @@ def _tcp_address(text: str) -> tuple[str, int]:
     return (host if sep and host else "127.0.0.1"), number
 
 
+#: The documented ranges of the simulator's numeric options.
+MAX_RDT = 254  #: Return Delay Time item, 2 us units (e-Manual: 0..254)
+MAX_BOOT_MS = 60_000.0  #: silence after REBOOT, ms
+MAX_DELAY_MS = 10_000.0  #: a late reply, ms
+MAX_FAULT_TIME_S = 86_400.0  #: when an --unplug or --hwerror happens, seconds after the start
+
+
+def _finite(text: str, option: str, item: str, lo: float, hi: float) -> float:
+    """``text`` as a number within ``lo..hi``, else a ConfigError naming ``option`` and the whole ``item``."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise ConfigError("Expected a number", key=option, value=item) from None
+    if not (math.isfinite(value) and lo <= value <= hi):
+        within = f"from {lo:g} to {hi:g}" if math.isfinite(hi) else f">= {lo:g}"
+        raise ConfigError(f"Expected a finite number {within}", key=option, value=item)
+    return value
+
+
+def _items(values: list[str]) -> list[str]:
+    return [part.strip() for v in values for part in str(v).split(",") if part.strip()]
+
+
+def check_options(args: argparse.Namespace) -> dict[str, set[int]]:
+    """Check the numeric options (each ConfigError names its option); returns the servo IDs each fault option
+    names, by option, to check against the bus's IDs."""
+    if args.baud is not None and args.baud not in SERVO_BAUDS:
+        rates = ", ".join(map(str, SERVO_BAUDS))
+        raise ConfigError(f"Expected a Dynamixel baud rate ({rates})", key="--baud", value=args.baud)
+    if args.rdt is not None and not 0 <= args.rdt <= MAX_RDT:
+        raise ConfigError(f"Expected a Return Delay Time 0..{MAX_RDT} (2 us units)", key="--rdt", value=args.rdt)
+    if not (math.isfinite(args.boot_ms) and 0 <= args.boot_ms <= MAX_BOOT_MS):
+        message = f"Expected a finite number of ms from 0 to {MAX_BOOT_MS:g}"
+        raise ConfigError(message, key="--boot-ms", value=args.boot_ms)
+    if args.model is not None and args.ids is not None and args.model.upper() not in SERVO_MODELS:
+        raise ConfigError(f"Expected one of {', '.join(SERVO_MODELS)}", key="--model", value=args.model)
+    ids: dict[str, set[int]] = {}
+    for option, values, hi in (
+        ("--drop", args.drop, math.inf),  # (the fraction's 0..1 is the simulator's check)
+        ("--corrupt", args.corrupt, math.inf),
+        ("--delay-ms", args.delay_ms, MAX_DELAY_MS),
+    ):
+        for item in _items(values):
+            sid, _, number = item.rpartition(":")
+            _finite(number, option, item, 0.0, hi)
+            if sid.strip().isdigit():
+                ids.setdefault(option, set()).add(int(sid))
+    for option, values in (("--unplug", args.unplug), ("--hwerror", args.hwerror)):
+        for item in _items(values):
+            head, sep, at = item.rpartition("@")
+            if sep:
+                _finite(at, option, item, 0.0, MAX_FAULT_TIME_S)
+            sid = head.partition(":")[0].strip()
+            if sid.isdigit():
+                ids.setdefault(option, set()).add(int(sid))
+    return ids
+
+
+def _check_fault_ids(fault_ids: dict[str, set[int]], bus_ids: tuple[int, ...]) -> None:
+    for option, named in fault_ids.items():
+        missing = sorted(named - set(bus_ids))
+        if missing:
+            message = f"Expected a servo ID on the bus ({', '.join(map(str, bus_ids))})"
+            raise ConfigError(message, key=option, value=", ".join(map(str, missing)))
+
+
 def build_bus(args: argparse.Namespace) -> SimBus:
     """The SimBus the options describe (real-time clock)."""
 
+    fault_ids = check_options(args)
     faults = Faults.from_options(
         drop=args.drop,
         corrupt=args.corrupt,
@@ -108,8 +177,10 @@ def build_bus(args: argparse.Namespace) -> SimBus:
         if args.base is not None or args.tip is not None:
             option = "--base" if args.base is not None else "--tip"
             raise ConfigError(f"{option} goes with a URDF --arm, not --ids", key=option, value=args.ids)
+        ids = parse_ids(args.ids)
+        _check_fault_ids(fault_ids, tuple(ids))
         return SimBus.from_ids(
-            parse_ids(args.ids),
+            ids,
             args.model or "XL430-W250",
             clock=clock,
             baud=args.baud or 1_000_000,
@@ -119,8 +190,10 @@ def build_bus(args: argparse.Namespace) -> SimBus:
         )
     if args.model is not None:
         raise ConfigError("--model goes with --ids", key="--model", value=args.model)
+    arm = load_arm_option(args)
+    _check_fault_ids(fault_ids, arm.servo_ids)
     return SimBus.from_arm(
-        load_arm_option(args),
+        arm,
         clock=clock,
         baud=args.baud,
         return_delay_time=args.rdt,
@@ -133,12 +206,12 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         bus = build_bus(args)
-    except KeyError as exc:  # an unknown model
-        raise ConfigError(str(exc.args[0]), key="--model") from None
+    except KeyError as exc:  # every option is checked first: no option to name
+        raise ConfigError(str(exc.args[0])) from None
     except ValueError as exc:
         if isinstance(exc, ConfigError):
             raise
-        raise ConfigError(str(exc), key="--baud") from None
+        raise ConfigError(str(exc)) from None
     server: SimServer
     if args.tcp is not None:
         host, port = _tcp_address(args.tcp)

@@ -87,9 +87,20 @@ class LoopConfig:
     #: ``velocity_scale x max_velocity``); 0 = no lead-in (the first ticks go there at full speed)
     lead_in_speed: float = 0.5
 
+    #: the documented ranges (a run's length and every check stay bounded): ticks per second, clip speed,
+    #: velocity fraction, lead-in rad/s (or 0), IK sweeps per tick, IK tolerance metres
+    RATE_RANGE = (1.0, 1000.0)
+    SPEED_RANGE = (0.01, 100.0)
+    VELOCITY_SCALE_RANGE = (0.01, 1.0)
+    LEAD_IN_SPEED_RANGE = (0.01, 20.0)
+    IK_ITERATIONS_RANGE = (1.0, 1000.0)
+    IK_TOLERANCE_RANGE = (0.0, 0.1)  # (> 0, checked first)
+
     def __post_init__(self) -> None:
         _require(_finite(self.rate) and self.rate > 0, "rate", "Expected a tick rate > 0 Hz", self.rate)
+        _within(self.rate, self.RATE_RANGE, "rate", "Expected a tick rate from {lo:g} to {hi:g} Hz")
         _require(_finite(self.speed) and self.speed > 0, "speed", "Expected a speed > 0", self.speed)
+        _within(self.speed, self.SPEED_RANGE, "speed", "Expected a speed from {lo:g} to {hi:g}")
         _require(_finite(self.start) and self.start >= 0, "start", "Expected a start time >= 0 s", self.start)
         if self.end is not None:
             message = f"Expected an end time after start ({self.start:g} s)"
@@ -98,11 +109,25 @@ class LoopConfig:
             _require(self.max_ticks >= 1, "max_ticks", "Expected at least 1 tick", self.max_ticks)
         scale = self.velocity_scale
         _require(_finite(scale) and 0 < scale <= 1, "velocity_scale", "Expected a fraction in (0, 1]", scale)
+        _within(scale, self.VELOCITY_SCALE_RANGE, "velocity_scale", "Expected a fraction from {lo:g} to {hi:g}")
         _require(self.ik_iterations >= 1, "ik_iterations", "Expected at least 1 sweep", self.ik_iterations)
+        _within(self.ik_iterations, self.IK_ITERATIONS_RANGE, "ik_iterations", "Expected {lo:g} to {hi:g} sweeps")
         tolerance = self.ik_tolerance
         _require(_finite(tolerance) and tolerance > 0, "ik_tolerance", "Expected a tolerance > 0 m", tolerance)
+        _within(tolerance, self.IK_TOLERANCE_RANGE, "ik_tolerance", "Expected a tolerance <= {hi:g} m")
         speed, message = self.lead_in_speed, "Expected a joint speed >= 0 rad/s (0: no lead-in)"
         _require(_finite(speed) and speed >= 0, "lead_in_speed", message, speed)
+        if speed != 0:
+            message = "Expected a joint speed from {lo:g} to {hi:g} rad/s, or 0 (no lead-in)"
+            _within(speed, self.LEAD_IN_SPEED_RANGE, "lead_in_speed", message)
+        every = self.progress_every
+        _require(_finite(every) and every > 0, "progress_every", "Expected a period > 0 s", every)
+
+
+def _within(value: float, bounds: tuple[float, float], key: str, message: str) -> None:
+    """``value`` within ``bounds`` (inclusive), else a ConfigError with ``message`` formatted with ``lo``, ``hi``."""
+    lo, hi = bounds
+    _require(lo <= value <= hi, key, message.format(lo=lo, hi=hi), value)
 
 
 def _finite(x: float) -> bool:
@@ -134,6 +159,8 @@ class TickRecord:
     overrun: bool
     bus_retries: int  #: retries the bus made during this tick
     lead_in: bool = False  #: a tick of the lead-in (slot < 0, before the clip's clock starts)
+    #: servos whose read-back missed this tick (their last position stands in ``q_present``); 0 = all fresh
+    stale: int = 0
 
 
 def run_ticks(
@@ -188,7 +215,8 @@ def run_ticks(
         raise ValueError(f"Expected the source's first slot <= 0, got {first}")
     recorder = StatsRecorder(rate=config.rate, dry_run=bus is None, first=first, wall0=time.perf_counter())
     retries = status.retries if status is not None else 0
-    reporter = _Reporter(source, recorder, bus, config, on_tick, on_progress, progress_time, retries)
+    stale = status.stale_reads if status is not None else 0
+    reporter = _Reporter(source, recorder, bus, config, on_tick, on_progress, progress_time, retries, stale)
     run = _Run(arm, source, solver, config, q_cmd, first, recorder)
     read_back = read_back_for(bus, reporter, pipeline=pipeline)
     schedule = Schedule(clock, rate=config.rate, first=first)  # slot `first` starts now
@@ -196,6 +224,9 @@ def run_ticks(
     if bus is not None and status is not None:
         end = bus.status()
         stats.bus_errors, stats.bus_retries = end.errors - status.errors, end.retries - status.retries
+        stats.stale_reads = end.stale_reads - status.stale_reads
+        stats.stale_ticks = end.stale_ticks - status.stale_ticks
+        stats.worst_stale = end.worst_stale
     return stats
 
 
@@ -308,22 +339,25 @@ class _Reporter:
         on_progress: Callable[[TickRecord], None] | None,
         progress_time: Callable[[], float] | None,
         retries: int,
+        stale: int = 0,
     ):
         self.source, self.observes, self.recorder, self.bus = source, source.observes, recorder, bus
         self.on_tick, self.on_progress, self.progress_time = on_tick, on_progress, progress_time
         self.progress_every = config.progress_every
         self.next_progress = -math.inf  # progress time of the next progress report: the first tick reports
         self.retries = retries  # the bus's retries when the last tick was reported
+        self.stale = stale  # the bus's stale reads then
 
     def __call__(self, done: SentTick, present: npt.NDArray[np.float64] | None, collect_time: float) -> None:
         """Report ``done`` with its read-back ``present`` (None: none) that took ``collect_time`` s to collect."""
         bus_time = done.bus_time
         if collect_time:  # pipelined: collecting its read-back during the next tick was bus time of this one
             bus_time = self.recorder.add_bus_time(done.slot, done.row, collect_time)
-        retries = 0
+        retries = stale = 0
         if self.bus is not None:
-            retries_now = self.bus.status().retries
-            retries, self.retries = retries_now - self.retries, retries_now
+            status = self.bus.status()
+            retries, self.retries = status.retries - self.retries, status.retries
+            stale, self.stale = status.stale_reads - self.stale, status.stale_reads
         if self.observes:
             self.source.observe(done.slot, done.q_cmd, present)
         report, progress_now = False, 0.0
@@ -331,7 +365,7 @@ class _Reporter:
             progress_now = done.ended if self.progress_time is None else self.progress_time()
             report = progress_now >= self.next_progress
         if self.on_tick is not None or report:
-            record = self.record(done, present, bus_time, retries)
+            record = self.record(done, present, bus_time, retries, stale)
             if self.on_tick is not None:
                 self.on_tick(record)
             if report and self.on_progress is not None:
@@ -339,7 +373,7 @@ class _Reporter:
                 self.on_progress(record)
 
     def record(
-        self, done: SentTick, present: npt.NDArray[np.float64] | None, bus_time: float, retries: int
+        self, done: SentTick, present: npt.NDArray[np.float64] | None, bus_time: float, retries: int, stale: int = 0
     ) -> TickRecord:
         slot = done.slot
         return TickRecord(
@@ -359,4 +393,5 @@ class _Reporter:
             overrun=done.overrun,
             bus_retries=retries,
             lead_in=slot < 0,
+            stale=stale,
         )

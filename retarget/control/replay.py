@@ -20,7 +20,10 @@ same tick loop, before the clip's clock starts (their ``time`` is negative,
 still starts at slot 0 with the same bus calls, limits and velocity limiting.
 Its ticks are counted apart (:mod:`~retarget.control.stats`): the summary's ticks, IK stats, tick times,
 overruns and real-time factor are the clip's; ``lead_in_ticks`` and
-``lead_in_s`` report the lead-in; ``max_ticks`` counts clip ticks.  A dry run
+``lead_in_s`` report the lead-in; ``max_ticks`` counts clip ticks, and bounds the lead-in too: a lead-in
+planned longer than ``max_ticks`` slots runs only its first ``max_ticks`` (with a warning), and the clip's
+ticks then carry on from there under the velocity limit, so a run never takes more than ``2 x max_ticks``
+ticks (``--velocity-scale 0.01 --max-ticks 5`` ends).  A dry run
 has no lead-in (no arm to move): start it from ``initial_pose()`` to get the
 trajectory the clip part of a bus run commands.
 
@@ -40,7 +43,7 @@ import logging
 import math
 import threading
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import numpy.typing as npt
@@ -244,6 +247,8 @@ class LeadIn:
     #: rad per joint, ``speed / rate``: each goal's step limit in the loop, so a tick after an overrun moves on at
     #: the lead-in's speed (and the lead-in catches up on its slower end) instead of jumping to the planned pose
     max_step: tuple[float, ...] | None = None
+    #: the slots of the whole plan when only its first ``n_slots`` run (:meth:`truncated`); None: the whole plan
+    planned_slots: int | None = None
 
     @classmethod
     def plan(
@@ -264,12 +269,19 @@ class LeadIn:
         max_step = tuple((np.broadcast_to(speed, q_from.shape) / rate * (1.0 + 1e-9)).tolist())
         return cls(q_from=q_from, q_to=q_to, target=np.asarray(target, dtype=np.float64), n_slots=n, max_step=max_step)
 
+    def truncated(self, n_slots: int) -> LeadIn:
+        """Only the first ``n_slots`` slots of this plan (at its speed: it stops partway to ``q_to``)."""
+        if n_slots >= self.n_slots:
+            return self
+        return replace(self, n_slots=n_slots, planned_slots=self.planned_slots or self.n_slots)
+
     def goal(self, slot: int) -> JointGoal:
         """The goal of lead-in slot ``slot`` (``-n_slots <= slot < 0``)."""
         i = slot + self.n_slots + 1
-        if i >= self.n_slots:
+        n = self.planned_slots or self.n_slots
+        if i >= n:
             return JointGoal(self.q_to, self.target, self.max_step)
-        s = 0.5 - 0.5 * math.cos(math.pi * i / self.n_slots)
+        s = 0.5 - 0.5 * math.cos(math.pi * i / n)
         return JointGoal(self.q_from + s * (self.q_to - self.q_from), self.target, self.max_step)
 
 
@@ -300,6 +312,13 @@ class ClipSource(TargetSource):
         speed = np.minimum(cfg.lead_in_speed, cfg.velocity_scale * loop.arm.max_velocity)
         positions, _, _ = loop.sample(0, 1)
         self.lead_in = LeadIn.plan(q_start, self.lead_in_to, speed=speed, rate=cfg.rate, target=positions[0])
+        if cfg.max_ticks is not None and self.lead_in.n_slots > cfg.max_ticks:  # the run stays as long as asked
+            log.warning(
+                "lead-in: cut to max_ticks = %d of its %d ticks; the clip starts from where it got to",
+                cfg.max_ticks,
+                self.lead_in.n_slots,
+            )
+            self.lead_in = self.lead_in.truncated(cfg.max_ticks)
         if self.lead_in.n_slots:
             log.info(
                 "lead-in: %d ticks (%.2f s) to the clip's first pose at <= %.3g rad/s",

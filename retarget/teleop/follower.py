@@ -47,7 +47,7 @@ from retarget.control.loop import LoopConfig, TickRecord, run_ticks
 from retarget.control.source import HOLD, TargetSource, TickSolver, TickTarget
 from retarget.control.stats import TickStats
 from retarget.control.summary import RunSummary
-from retarget.errors import require_positive
+from retarget.errors import ConfigError, require_positive
 from retarget.ik.ccd import CCDSolver, IKResult
 from retarget.mapping.config import MappingConfig
 from retarget.mapping.workspace import ik_weights
@@ -153,7 +153,7 @@ class Follower(TargetSource):
         self.clock = clock
         self.rate = require_positive(rate, "rate")
         self.max_speed = require_positive(max_speed, "max_speed", inf=True)
-        self.tolerance = require_positive(tolerance, "tolerance")
+        self.tolerance = require_tolerance(tolerance)
         self.pass_radius = max(require_positive(pass_radius, "pass_radius"), self.tolerance)
         self.timeout = None if timeout is None else require_positive(timeout, "timeout")
         self.max_lag = None if max_lag is None else require_positive(max_lag, "max_lag")
@@ -456,6 +456,19 @@ class _Run(TargetSource):
         return settled or tick - self._done_tick >= self.settle_ticks
 
 
+#: The largest ``tolerance`` (m) of a follower or a teleop run: past it "reached" says nothing (``1e300`` made
+#: every target reached).
+MAX_TOLERANCE = 0.1
+
+
+def require_tolerance(value: object, key: str = "tolerance") -> float:
+    """``value`` as a tolerance in metres, > 0 and at most :data:`MAX_TOLERANCE`, else a ConfigError naming ``key``."""
+    tolerance = require_positive(value, key)
+    if tolerance > MAX_TOLERANCE:
+        raise ConfigError(f"Expected a tolerance > 0 and <= {MAX_TOLERANCE:g} m", key=key, value=value)
+    return tolerance
+
+
 def run_teleop(
     arm: Arm,
     follower: Follower,
@@ -493,7 +506,8 @@ def run_teleop(
     >>> result.reached_target, result.residual is not None and result.residual <= 0.005
     (True, True)
     """
-    run = _Run(follower, settle_ticks=max(1, int(round(settle_time * config.rate))))
+    tolerance = require_tolerance(tolerance)
+    run = _Run(follower, settle_ticks=max(1, int(round(require_positive(settle_time, "settle_time") * config.rate))))
     stats = run_ticks(
         arm,
         run,

@@ -61,6 +61,7 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 MAX_MESSAGE_BYTES = 1024  #: default size limit of one line or datagram
+MAX_RPY_DEG = 360.0  #: every roll, pitch and yaw (of a target or of the base pose) is within +-360 degrees
 
 
 class Reject(enum.Enum):
@@ -138,6 +139,9 @@ def parse_message(data: str | bytes, *, max_bytes: int = MAX_MESSAGE_BYTES, key:
         values = [float(t) for t in tokens]
     if not all(math.isfinite(v) for v in values):
         raise TargetRejected(Reject.NON_FINITE, "Expected finite numbers", key=key, value=text)
+    if not all(abs(v) <= MAX_RPY_DEG for v in values[3:]):
+        message = f"Expected roll, pitch and yaw from {-MAX_RPY_DEG:g} to {MAX_RPY_DEG:g} degrees"
+        raise TargetRejected(Reject.MALFORMED, message, key=key, value=text)
     position = np.array(values[:3], dtype=np.float64)
     rpy = np.radians(np.array(values[3:], dtype=np.float64)) if len(values) == 6 else None
     return Message(position, rpy)
@@ -190,7 +194,12 @@ class BasePose:
 
     @classmethod
     def from_xyz_rpy(cls, xyz: Sequence[float], rpy_deg: Sequence[float] = (0.0, 0.0, 0.0)) -> BasePose:
-        """From a position (metres) and URDF roll-pitch-yaw (degrees)."""
+        """From a position (metres) and URDF roll-pitch-yaw (degrees, each within ``+-MAX_RPY_DEG``); a
+        ConfigError with ``key="base_pose"`` for a non-finite number or an angle out of range."""
+        values = [*xyz, *rpy_deg]
+        if not all(math.isfinite(v) for v in values) or not all(abs(v) <= MAX_RPY_DEG for v in rpy_deg):
+            message = f"Expected finite numbers, roll, pitch and yaw from {-MAX_RPY_DEG:g} to {MAX_RPY_DEG:g} degrees"
+            raise ConfigError(message, key="base_pose", value=tuple(values))
         rpy = np.radians(np.asarray(rpy_deg, dtype=np.float64)).tolist()
         return cls(rpy_matrix(rpy), np.asarray(xyz, dtype=np.float64))
 

@@ -24,7 +24,7 @@ from collections.abc import Callable
 from typing import IO, Self
 
 from retarget.errors import ConfigError
-from retarget.teleop.gate import Message, Reject, Target, TargetGate, TargetRejected, parse_message
+from retarget.teleop.gate import MAX_RPY_DEG, Message, Reject, Target, TargetGate, TargetRejected, parse_message
 
 __all__ = [
     "DEFAULT_UDP_HOST",
@@ -160,6 +160,9 @@ class OneShotSource(Source):
             angles = parse_message(rpy, max_bytes=gate.max_bytes, key="rpy")
             if angles is None:
                 raise TargetRejected(Reject.MALFORMED, "Expected R,P,Y degrees", key="rpy", value=rpy)
+            if not all(abs(float(v)) <= MAX_RPY_DEG for v in angles.position):
+                message_text = f"Expected R,P,Y from {-MAX_RPY_DEG:g} to {MAX_RPY_DEG:g} degrees"
+                raise TargetRejected(Reject.MALFORMED, message_text, key="rpy", value=rpy)
             message = Message(message.position, angles.position * (math.pi / 180.0))
         position_m, rotation = gate.convert(message, key="position")
         gate.accepted += 1

@@ -134,16 +134,28 @@ CASES = {
     "frame-time-huge": (  # fuzz: the duration was inf
         sub("0.0333333", "1e308"),
         18,
-        "Expected a frame time from 1e-06 to 1e+06 seconds, got '1e308'",
+        "Expected a frame time from 0.0001 to 10 seconds, got '1e308'",
     ),
-    "frame-time-tiny": (sub("0.0333333", "1e-310"), 18, "Expected a frame time from 1e-06 to 1e+06 seconds"),
+    "frame-time-tiny": (sub("0.0333333", "1e-310"), 18, "Expected a frame time from 0.0001 to 10 seconds"),
+    "frame-time-1e300": (sub("0.0333333", "1e300"), 18, "Expected a frame time from 0.0001 to 10 seconds"),
+    "frame-time-11s": (sub("0.0333333", "11"), 18, "Expected a frame time from 0.0001 to 10 seconds, got '11'"),
+    "frame-time-below-1e-4": (sub("0.0333333", "9e-5"), 18, "Expected a frame time from 0.0001 to 10 seconds"),
     # values
     "non-numeric": (sub("9 8 7 6 5", "9 8 seven 6 5"), 20, "Expected a number, got 'seven'"),
     "comma-decimal": (sub("1 2 3 4 5", "1 2,5 3 4 5"), 19, "Expected a number, got '2,5'"),
     "nan-value": (sub("9 8 7 6 5", "9 8 nan 6 5"), 20, "Expected a finite number, got 'nan'"),
     "inf-value": (sub("1 2 3 4 5", "1 2 -inf 4 5"), 19, "Expected a finite number, got '-inf'"),
     "overflow-value": (sub("1 2 3 4 5", "1 2 1e999 4 5"), 19, "Expected a finite number, got '1e999'"),
-    "overflow-long-integer": (sub("9 8 7 6 5", "9 8 " + "9" * 400 + " 6 5"), 20, "Expected a finite number, got '999"),
+    "overflow-long-integer": (
+        sub("9 8 7 6 5", "9 8 " + "9" * 400 + " 6 5"),
+        20,
+        "Expected a number of at most 100 characters, got '" + "9" * 40 + "...' (400 characters)",
+    ),
+    "overflow-integer-at-token-cap": (
+        sub("9 8 7 6 5", "9 8 " + "9" * 100 + " 6 5"),
+        20,
+        "Expected a number from -1e+12",
+    ),
     "value-too-big": (  # fuzz: two such values summed to inf in FK
         sub("9 8 7 6 5", "9 8 -1e308 6 5"),
         20,

@@ -46,11 +46,38 @@ def test_builds_ids_of_one_model_with_faults():
         pytest.param(["--tcp", "host:x"], r"--tcp: Expected \[HOST:\]PORT", id="tcp"),
         pytest.param(["--tcp", "70000"], "--tcp: Expected a port", id="tcp-port"),
         pytest.param(["--hwerror", "3:melting@1"], "hwerror: Expected a kind", id="hwerror"),
+        # issue 16: every numeric option has a range, and each error names its own option
+        pytest.param(["--boot-ms", "-1"], r"^--boot-ms: Expected a finite number of ms from 0 to 60000", id="boot-neg"),
+        pytest.param(["--boot-ms", "nan"], r"^--boot-ms: Expected a finite number", id="boot-nan"),
+        pytest.param(["--boot-ms", "inf"], r"^--boot-ms: Expected a finite number", id="boot-inf"),
+        pytest.param(["--delay-ms", "inf"], r"^--delay-ms: Expected a finite number from 0 to 10000", id="delay-inf"),
+        pytest.param(["--delay-ms", "3:nan"], r"^--delay-ms: Expected a finite number .*'3:nan'", id="delay-id-nan"),
+        pytest.param(["--drop", "nan"], r"^--drop: Expected a finite number >= 0", id="drop-nan"),
+        pytest.param(["--corrupt", "1.5"], r"corrupt: Expected a fraction", id="corrupt"),
+        pytest.param(["--unplug", "4@nan"], r"^--unplug: Expected a finite number .*'4@nan'", id="unplug-nan"),
+        pytest.param(["--unplug", "4@-1"], r"^--unplug: Expected a finite number", id="unplug-negative"),
+        pytest.param(["--hwerror", "3:overload@inf"], r"^--hwerror: Expected a finite number", id="hwerror-inf"),
+        pytest.param(["--rdt", "-1"], r"^--rdt: Expected a Return Delay Time 0\.\.254", id="rdt-negative"),
+        pytest.param(["--rdt", "255"], r"^--rdt: Expected a Return Delay Time 0\.\.254", id="rdt-255"),
+        pytest.param(["--unplug", "99@1"], r"^--unplug: Expected a servo ID on the bus \(1, 2, .*'99'", id="unplug-id"),
+        pytest.param(["--drop", "42:0.1"], r"^--drop: Expected a servo ID on the bus", id="drop-id"),
+        pytest.param(
+            ["--ids", "1-3", "--hwerror", "7:overload@1"],
+            r"^--hwerror: Expected a servo ID on the bus \(1, 2, 3\)",
+            id="hwerror-id-with-ids",
+        ),  # fmt: skip
     ],
 )
 def test_bad_options_raise_config_errors(argv, match):
     with pytest.raises(ConfigError, match=match):
         sim_cli.run(parse(*argv))
+
+
+def test_options_at_the_ends_of_their_ranges_build_a_bus():
+    bus = sim_cli.build_bus(
+        parse("--boot-ms", "60000", "--rdt", "254", "--delay-ms", "10000", "--unplug", "9@86400", "--drop", "1")
+    )
+    assert bus.ids == tuple(range(1, 10))
 
 
 def _start(*argv: str) -> tuple[subprocess.Popen, str]:
