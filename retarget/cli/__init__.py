@@ -7,7 +7,8 @@ functions: ``add_parser(subparsers) -> argparse.ArgumentParser`` and
 Errors: a :class:`~retarget.errors.RetargetError` (bad file, bad config, bus
 failure) prints one line ``retarget: <message>`` on stderr and exits with the
 command's error status (2 for bad input by default); ``-v`` also prints the
-traceback.  Ctrl-C exits 130 after the command's own cleanup ran.  The library's errors
+traceback.  Ctrl-C exits 130 after the command's own cleanup ran; in ``replay`` and ``teleop`` SIGTERM
+and SIGHUP run the same cleanup (the bus's shutdown) and exit 143 and 129.  The library's errors
 name fields (``rate``, ``mapping.floor``); :mod:`retarget.cli.options` maps them to the
 options that set them, in one table.  Shared options live in ``_arm`` and ``_bus``; the
 curses screen of ``teleop --interactive`` in :mod:`retarget.cli.tui`.
@@ -33,7 +34,7 @@ EXIT_OK = 0
 EXIT_USAGE = 2  #: bad input: a file, a config key, an option value
 EXIT_BUS = 4  #: the bus failed (no reply, hardware alert)
 EXIT_UNREACHED = 3  #: teleop: the last target was not reached within tolerance
-EXIT_INTERRUPTED = 130
+EXIT_INTERRUPTED = 130  #: Ctrl-C; SIGTERM 143 and SIGHUP 129 (128 + the signal number)
 
 EPILOG = """\
 examples:
@@ -93,9 +94,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             traceback.print_exc()
         print(f"retarget: {option_error(exc) if isinstance(exc, ConfigError) else exc}", file=sys.stderr)
         return EXIT_BUS if isinstance(exc, BusError) else EXIT_USAGE
-    except KeyboardInterrupt:
-        print("retarget: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
+    except KeyboardInterrupt as exc:  # a second Ctrl-C, SIGTERM or SIGHUP (``_bus.SignalInterrupt``: its signum)
+        try:
+            print("retarget: interrupted", file=sys.stderr)
+        except OSError:  # the terminal hung up
+            pass
+        signum = getattr(exc, "signum", None)
+        return EXIT_INTERRUPTED if signum is None else 128 + int(signum)
     except BrokenPipeError:  # `retarget inspect x --json | head`
         return EXIT_OK
     except OSError as exc:  # a file that cannot be opened, a port that does not exist

@@ -2,8 +2,10 @@
 
 ``--port`` (a serial port, a pyserial URL, ``sim://…``; none = an in-process simulated bus), ``--fast``
 (a virtual clock shared by the loop and the simulator), ``--shutdown``, ``--telemetry``, ``--json`` and
-``--progress``; :func:`build_bus` turns them into a driver and the clock the loop must run on, and
-:func:`sigint_stops` makes the first Ctrl-C stop the loop at a tick boundary so the bus's shutdown runs.
+``--progress``, ``--recover``; :func:`build_bus` turns them into a driver and the clock the loop must run on, and
+:func:`signals_stop` makes the first Ctrl-C, SIGTERM or SIGHUP stop the loop at a tick boundary so the bus's
+shutdown runs.  :class:`TickTally` keeps what a run's summary needs, for a run that a bus failure ends
+(``--json`` then prints that summary with the failure in it, :func:`failure_summary`).
 """
 
 from __future__ import annotations
@@ -11,6 +13,8 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
+import time
+from array import array
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -24,7 +28,9 @@ from retarget.arm import Arm
 from retarget.control import LoopConfig
 from retarget.control.bus import Bus
 from retarget.control.clock import Clock, MonotonicClock, VirtualClock
-from retarget.errors import ConfigError
+from retarget.control.loop import TickRecord
+from retarget.control.summary import RunSummary, summarize
+from retarget.errors import BusError, ConfigError
 from sim.transport import bus_from_url
 
 SHUTDOWN_MODES = ("hold", "rest", "off")
@@ -50,6 +56,13 @@ def add_bus_arguments(parser: argparse.ArgumentParser | Any, *, shutdown: str = 
     parser.add_argument("--telemetry", default=None, metavar="CSV", help="write one CSV row per tick ('-' = stdout)")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     parser.add_argument("--progress", action="store_true", help="progress lines on stderr even when not a TTY")
+    parser.add_argument(
+        "--recover",
+        action="store_true",
+        help="on a servo's hardware error (overload, overheating, voltage) reboot it and configure it again, up to "
+        "3 times per servo, instead of stopping the run. Risk: the reboot drops that servo's torque for a moment "
+        "(the joint can sag or fall) and the cause, such as a jam or a load, may still be there",
+    )
 
 
 def check_bus_options(args: argparse.Namespace) -> None:
@@ -68,29 +81,149 @@ def is_sim_port(port: str | None) -> bool:
     return port is None or port.startswith("sim://")
 
 
-@contextmanager
-def sigint_stops(stop: Callable[[], None]) -> Iterator[None]:
-    """First Ctrl-C: call ``stop`` (the loop ends at the next tick boundary); a second one interrupts at once."""
+#: the signals that stop a run as Ctrl-C does (those this platform has); the exit status is 128 + the number
+STOP_SIGNALS: tuple[signal.Signals, ...] = tuple(
+    getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
+)
+
+
+class SignalInterrupt(KeyboardInterrupt):
+    """A second SIGTERM or SIGHUP: interrupts at once, as a second Ctrl-C does; ``signum`` gives the exit status."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+@dataclass
+class Stopped:
+    """Which stop signal a run got first (None: none)."""
+
+    signum: int | None = None
+
+    @property
+    def exit_status(self) -> int:
+        """128 + the signal's number: 130 for Ctrl-C (also without a signal), 143 SIGTERM, 129 SIGHUP."""
+        return 128 + (int(signal.SIGINT) if self.signum is None else self.signum)
+
+
+def say(text: str) -> None:
+    """A line on stderr that cannot fail: after a SIGHUP the terminal may be gone."""
     try:
-        previous = signal.getsignal(signal.SIGINT)
-    except ValueError:  # not the main thread
-        yield
-        return
+        print(text, file=sys.stderr, flush=True)
+    except (OSError, ValueError):
+        pass
+
+
+@contextmanager
+def signals_stop(stop: Callable[[], None]) -> Iterator[Stopped]:
+    """The first Ctrl-C, SIGTERM or SIGHUP calls ``stop`` (the loop ends at the next tick boundary, and the bus's
+    shutdown runs); a second one interrupts at once (KeyboardInterrupt; :class:`SignalInterrupt` for SIGTERM and
+    SIGHUP).  Yields the :class:`Stopped` that says which signal came first.  Outside the main thread nothing is
+    installed; the previous handlers are put back on exit."""
+    stopped = Stopped()
 
     def handler(signum: int, frame: Any) -> None:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-        print("retarget: stopping (Ctrl-C again to interrupt)", file=sys.stderr)
+        if stopped.signum is not None:
+            if signum == signal.SIGINT:
+                raise KeyboardInterrupt
+            raise SignalInterrupt(signum)
+        stopped.signum = signum
         stop()
+        if signum == signal.SIGINT:
+            say("retarget: stopping (Ctrl-C again to interrupt)")
+        else:
+            say(f"retarget: stopping on {signal.Signals(signum).name} (send it again to interrupt)")
 
+    previous: dict[signal.Signals, Any] = {}
     try:
-        signal.signal(signal.SIGINT, handler)
-    except ValueError:
-        yield
+        for signum in STOP_SIGNALS:
+            previous[signum] = signal.getsignal(signum)
+            signal.signal(signum, handler)
+    except ValueError:  # not the main thread
+        for signum, old in previous.items():
+            signal.signal(signum, old)
+        yield stopped
         return
     try:
-        yield
+        yield stopped
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for signum, old in previous.items():
+            signal.signal(signum, old if old is not None else signal.SIG_DFL)
+
+
+class TickTally:
+    """What a run's summary needs from its ticks, kept as they come (an ``on_tick`` callback, passing each
+    record on to ``then``): the summary of a run that a bus failure ends, which the loop never returns."""
+
+    def __init__(self, then: Callable[[TickRecord], None] | None = None):
+        self.then = then
+        self.errors, self.compute, self.bus = array("d"), array("d"), array("d")
+        self.sweeps = array("q")
+        self.converged, self.clamped, self.limited = bytearray(), bytearray(), bytearray()
+        self.overruns = self.retries = self.lead_in_ticks = 0
+        self.last_slot = -1
+        self.wall0: float | None = None  #: perf_counter at the first clip tick
+
+    def __call__(self, r: TickRecord) -> None:
+        self.retries += r.bus_retries
+        if r.lead_in:
+            self.lead_in_ticks += 1
+        else:
+            if self.wall0 is None:
+                self.wall0 = time.perf_counter()
+            self.errors.append(r.ik_error)
+            self.sweeps.append(r.ik_sweeps)
+            self.converged.append(r.ik_converged)
+            self.clamped.append(r.clamped)
+            self.limited.append(r.velocity_limited)
+            self.compute.append(r.compute_time)
+            self.bus.append(r.bus_time)
+            self.overruns += r.overrun
+            self.last_slot = max(self.last_slot, r.tick)
+        if self.then is not None:
+            self.then(r)
+
+    def summary(
+        self, *, arm: str, clip: str, rate: float, frames: int = 0, speed: float = 1.0, bus: Bus | None = None
+    ) -> RunSummary:
+        """The summary of the ticks so far (``bus``: its error count since connect)."""
+        run_time = (self.last_slot + 1) / rate if self.last_slot >= 0 else 0.0
+        status = None
+        if bus is not None:
+            try:
+                status = bus.status()
+            except Exception:  # noqa: BLE001 - the summary of a failed run must not fail itself
+                status = None
+        return summarize(
+            arm=arm,
+            clip=clip,
+            dry_run=False,
+            interrupted=False,
+            frames=frames,
+            rate=rate,
+            duration_s=run_time * speed,
+            run_time_s=run_time,
+            wall_time_s=0.0 if self.wall0 is None else time.perf_counter() - self.wall0,
+            ik_error_m=np.asarray(self.errors),
+            ik_sweeps=np.asarray(self.sweeps),
+            ik_converged=np.asarray(self.converged, dtype=bool),
+            clamped=np.asarray(self.clamped, dtype=bool),
+            velocity_limited=np.asarray(self.limited, dtype=bool),
+            compute_s=np.asarray(self.compute),
+            bus_s=np.asarray(self.bus),
+            overruns=self.overruns,
+            skipped_ticks=0,
+            bus_errors=max(1, status.errors) if status is not None else 1,
+            bus_retries=max(self.retries, status.retries) if status is not None else self.retries,
+            lead_in_ticks=self.lead_in_ticks,
+            lead_in_s=self.lead_in_ticks / rate,
+        )
+
+
+def failure_summary(summary: dict[str, Any], exc: BusError) -> dict[str, Any]:
+    """``--json`` of a run that a bus failure ended: the summary so far and ``error``: kind, message, servo ids."""
+    return {**summary, "error": {"kind": "bus", "message": str(exc), "ids": list(exc.ids)}}
 
 
 @dataclass
@@ -129,14 +262,16 @@ def build_bus(args: argparse.Namespace, arm: Arm, config: LoopConfig | None = No
     No ``--port``: every servo of the arm simulated in process, wire-time model on.  ``sim://…``: the
     simulator the URL describes, built here so the loop can share its clock (``--fast`` adds
     ``clock=virtual``).  A real port runs on the monotonic clock.  With the run's ``config`` the driver
-    also limits speed itself (:func:`servo_limits`).
+    also limits speed itself (:func:`servo_limits`).  ``--recover``: the driver reboots a servo on a hardware
+    error and configures it again (``DynamixelBus(recover=True)``).
     """
 
     limits = servo_limits(arm, config)
+    recover = bool(getattr(args, "recover", False))
     port: str | None = args.port
     if not is_sim_port(port):
         clock: Clock = MonotonicClock()
-        return BusSetup(DynamixelBus(arm, port, shutdown=args.shutdown, clock=clock, **limits), clock)
+        return BusSetup(DynamixelBus(arm, port, shutdown=args.shutdown, clock=clock, recover=recover, **limits), clock)
 
     name = None
     if port is None:
@@ -153,5 +288,5 @@ def build_bus(args: argparse.Namespace, arm: Arm, config: LoopConfig | None = No
     if port is None or not port.startswith("sim://@"):
         port = sim.attach(simbus)
         name = port  # the URL: sim.unregister takes it as it is
-    bus = DynamixelBus(arm, port, shutdown=args.shutdown, clock=simbus.clock, **limits)
+    bus = DynamixelBus(arm, port, shutdown=args.shutdown, clock=simbus.clock, recover=recover, **limits)
     return BusSetup(bus, simbus.clock, name)

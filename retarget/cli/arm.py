@@ -20,6 +20,7 @@ from retarget.cli import print_json
 from retarget.cli._arm import load_arm_naming_links
 from retarget.errors import ConfigError
 from retarget.ik.ccd import CCDSolver
+from retarget.mapping.config import MappingConfig
 
 EXAMPLES = """\
 examples:
@@ -75,6 +76,7 @@ def run(args: argparse.Namespace) -> int:
                 print(f"{n:10s} {t}")
         return 0
     arm = load_arm_naming_links(args.arm, base=args.base, tip=args.tip)
+    MappingConfig.from_table(arm.mapping, path=arm.source)  # the [mapping] table too: an arm that checks out runs
     report = describe(arm)
     if args.ik is not None:
         report["ik"] = solve(arm, parse_point(args.ik), args.start)

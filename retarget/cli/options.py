@@ -46,6 +46,7 @@ OPTIONS: dict[str, str] = {
     "position": "--to",
     "rpy": "--rpy",
     "address": "--udp",
+    "base_pose": "--base-pose",
     # drivers.control_table.parse_ids; sim.Faults.from_options (retarget sim's fault options)
     "ids": "--ids",
     "drop": "--drop",

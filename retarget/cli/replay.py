@@ -25,14 +25,22 @@ import retarget
 from retarget.arm import Arm
 from retarget.bvh import DEMO_CLIP
 from retarget.bvh.motion import Motion
-from retarget.cli import EXIT_INTERRUPTED, print_json
+from retarget.cli import print_json
 from retarget.cli._arm import add_arm_arguments, load_arm_option
-from retarget.cli._bus import add_bus_arguments, build_bus, check_bus_options, sigint_stops
+from retarget.cli._bus import (
+    TickTally,
+    add_bus_arguments,
+    build_bus,
+    check_bus_options,
+    failure_summary,
+    say,
+    signals_stop,
+)
 from retarget.control import ControlLoop, LoopConfig, TickRecord
 from retarget.control.bus import connected
 from retarget.control.clock import Clock, MonotonicClock, VirtualClock
 from retarget.control.telemetry import TelemetryWriter
-from retarget.errors import ConfigError
+from retarget.errors import BusError, ConfigError
 from retarget.mapping import Targets, retarget_targets
 from retarget.mapping.config import MappingConfig
 
@@ -241,6 +249,7 @@ def run(args: argparse.Namespace) -> int:
     )
     setup = None if args.dry_run else build_bus(args, inputs.arm, config)
     telemetry = None
+    tally: TickTally | None = None
     try:
         clock: Clock = setup.clock if setup is not None else VirtualClock() if args.fast else MonotonicClock()
         loop = ControlLoop(inputs.arm, inputs.targets, config=config, clock=clock, clip_name=inputs.clip.name)
@@ -250,18 +259,26 @@ def run(args: argparse.Namespace) -> int:
             out = sys.stdout if args.telemetry == "-" else args.telemetry
             telemetry = TelemetryWriter(out, inputs.arm.joint_names).open()
             loop.on_tick = telemetry
-        with sigint_stops(loop.stop):
+        with signals_stop(loop.stop) as stopped:
             if setup is None:  # no arm to lead in: start on the first target's solution, as export does
                 summary = loop.run(None, q_start=loop.initial_pose())
             else:
+                if args.json:  # a bus failure ends the run without a summary: keep the ticks' figures
+                    loop.on_tick = tally = TickTally(loop.on_tick)
                 with connected(setup.bus):
                     summary = loop.run(setup.bus)
+    except BusError as exc:
+        if tally is not None and setup is not None:
+            partial = tally.summary(arm=inputs.arm.name, clip=inputs.clip.name, rate=config.rate,
+                                    frames=loop.frames, speed=config.speed, bus=setup.bus)  # fmt: skip
+            print_json(failure_summary(partial.to_dict(), exc))
+        raise
     finally:
         if telemetry is not None:
             telemetry.close()
         if setup is not None:
             setup.release()
-    print(summary.format(), file=sys.stderr)
+    say(summary.format())  # a hung-up terminal (SIGHUP) must not turn a clean stop into a traceback
     if args.json:
         print_json(summary.to_dict())
-    return EXIT_INTERRUPTED if summary.interrupted else 0
+    return stopped.exit_status if summary.interrupted else 0

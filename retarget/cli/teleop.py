@@ -9,7 +9,8 @@ bus options, telemetry, summary and Ctrl-C shutdown as 'retarget replay'.
 
 Exit status: 0 when the last target was reached within '--tolerance' (checked by FK of the positions
 read back from the servos), 3 when it was not (the arm stays at the nearest point it reached), 2 for bad
-input, 4 for a bus failure, 130 after Ctrl-C.
+input, 4 for a bus failure, 130 after Ctrl-C, 143 after SIGTERM, 129 after SIGHUP (each runs the same
+shutdown, '--shutdown').
 """
 
 from __future__ import annotations
@@ -18,19 +19,30 @@ import argparse
 import math
 import sys
 import threading
+from collections.abc import Callable
 from typing import Any
 
 from retarget.arm import Arm
-from retarget.cli import EXIT_INTERRUPTED, EXIT_UNREACHED, print_json
+from retarget.cli import EXIT_UNREACHED, print_json
 from retarget.cli._arm import add_arm_arguments, load_arm_option
-from retarget.cli._bus import BusSetup, add_bus_arguments, build_bus, check_bus_options, sigint_stops
+from retarget.cli._bus import (
+    BusSetup,
+    Stopped,
+    TickTally,
+    add_bus_arguments,
+    build_bus,
+    check_bus_options,
+    failure_summary,
+    say,
+    signals_stop,
+)
 from retarget.cli.options import OPTIONS
 from retarget.cli.replay import number, optional_count, optional_number
 from retarget.cli.tui import Jog, KeySource, TerminalUI
 from retarget.control.bus import connected
 from retarget.control.loop import LoopConfig, TickRecord
 from retarget.control.telemetry import TelemetryWriter
-from retarget.errors import ConfigError
+from retarget.errors import BusError, ConfigError
 from retarget.teleop import Follower, TeleopResult, run_teleop, tool_point
 from retarget.teleop.gate import BasePose, TargetBounds, TargetGate
 from retarget.teleop.sources import OneShotSource, Source, StdinSource, UdpSource, parse_address
@@ -129,6 +141,9 @@ def _check_options(args: argparse.Namespace) -> dict[str, Any]:
         "box": _numbers(args.box, option="--box", count=(6,)),
         "base_pose": _numbers(args.base_pose, option="--base-pose", count=(3, 6)),
     }
+    if out["base_pose"] is not None and not all(math.isfinite(v) for v in out["base_pose"]):
+        # the pose is the CLI's own: a NaN in it would reach the gate as a NaN target, which names --to
+        raise ConfigError("Expected finite numbers", key="--base-pose", value=args.base_pose)
     if args.udp is not None:
         out["timeout"] = DEFAULT_UDP_TIMEOUT if out["timeout"] is None else out["timeout"]
         out["max_lag"] = DEFAULT_UDP_MAX_LAG if out["max_lag"] is None else out["max_lag"]
@@ -200,17 +215,21 @@ def run(args: argparse.Namespace) -> int:
     setup = build_bus(args, arm, config)
     source: Source | None = None
     telemetry: TelemetryWriter | None = None
+    on_tick: TickTally | TelemetryWriter | None = None
     stop = threading.Event()
+    stopped = Stopped()
     try:
         gate = _gate(args, arm, setup.clock, opts)
         if not args.interactive:
             source = _source(args, gate).start()
         if args.telemetry is not None:
             out = sys.stdout if args.telemetry == "-" else args.telemetry
-            telemetry = TelemetryWriter(out, arm.joint_names).open()
-        with sigint_stops(stop.set), connected(setup.bus):
+            on_tick = telemetry = TelemetryWriter(out, arm.joint_names).open()
+        if args.json:  # a bus failure ends the run without a summary: keep the ticks' figures
+            on_tick = TickTally(telemetry)
+        with signals_stop(stop.set) as stopped, connected(setup.bus):
             if source is None:
-                result = _interactive(arm, setup, gate, config, opts, stop, telemetry)
+                result = _interactive(arm, setup, gate, config, opts, stop, on_tick)
             else:
                 follower = Follower(
                     arm,
@@ -231,11 +250,16 @@ def run(args: argparse.Namespace) -> int:
                     clock=setup.clock,
                     bus=setup.bus,
                     tolerance=opts["tolerance"],
-                    on_tick=telemetry,
+                    on_tick=on_tick,
                     on_progress=progress,
                     stop=stop,
                     name=_name(args),
                 )
+    except BusError as exc:
+        if isinstance(on_tick, TickTally):
+            partial = on_tick.summary(arm=arm.name, clip=_name(args), rate=config.rate, bus=setup.bus)
+            print_json(failure_summary({**partial.to_dict(), "teleop": None}, exc))
+        raise
     finally:
         if source is not None:
             source.close()
@@ -244,7 +268,7 @@ def run(args: argparse.Namespace) -> int:
         setup.release()
     _report(args, result, gate.frame_pose)
     if result.summary.interrupted:
-        return EXIT_INTERRUPTED
+        return stopped.exit_status
     if result.target is not None and not result.reached_target and not args.interactive:
         return EXIT_UNREACHED
     return 0
@@ -255,7 +279,7 @@ def _report(args: argparse.Namespace, result: TeleopResult, pose: BasePose | Non
     s = result.summary
     head = f"teleop{' (interrupted)' if s.interrupted else ''}: {s.clip} on {s.arm}: {s.ticks} ticks at "
     head += f"{s.rate_hz:g} Hz, {s.run_time_s:.2f} s in {s.wall_time_s:.3f} s ({s.real_time_factor:.1f}x real time)"
-    print("\n".join([head, *s.format().split("\n")[1:], result.format()]), file=sys.stderr)
+    say("\n".join([head, *s.format().split("\n")[1:], result.format()]))  # SIGHUP: the terminal may be gone
     if args.json:
         doc = result.to_dict()
         if pose is not None and result.target is not None:
@@ -286,7 +310,7 @@ def _interactive(
     config: LoopConfig,
     opts: dict[str, Any],
     stop: threading.Event,
-    telemetry: TelemetryWriter | None,
+    telemetry: Callable[[TickRecord], None] | None,
 ) -> TeleopResult:
     """The curses UI around the loop: keys feed a KeySource, the screen is drawn from on_tick."""
     import curses  # here, not at the top: Windows Pythons have no curses, and only --interactive needs it

@@ -9,6 +9,7 @@ import pytest
 
 from retarget import load_arm
 from retarget.cli import main
+from tests.helpers import REPO
 
 
 def run(capsys, *argv):
@@ -96,3 +97,12 @@ def test_urdf_with_tip(capsys, tmp_path):
     code, out, _ = run(capsys, str(tmp_path / "two.urdf"), "--tip", "d", "--json")
     report = json.loads(out)
     assert code == 0 and report["tool_xyz"] == [0.0, 0.3, 0.0] and report["servo_ids"] == [7]
+
+
+def test_a_bad_mapping_table_is_caught_by_retarget_arm(tmp_path, capsys):
+    text = (REPO / "config" / "arms" / "koch.toml").read_text() + '\n[mapping]\narm_scale = "big"\n'
+    path = tmp_path / "koch_bad.toml"
+    path.write_text(text)
+    assert main(["arm", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err == f"retarget: {path}: mapping.arm_scale: Expected a number > 0 (got 'big')\n"

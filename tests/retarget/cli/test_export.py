@@ -78,11 +78,12 @@ def test_every_shared_clip_and_side_stays_within_limits(capsys, tmp_path, clip, 
     [
         (["missing.bvh"], r"missing\.bvh"),
         (["--rate", "-5"], r"--rate: Expected a tick rate > 0 Hz"),
+        (["--rate", "fast"], r"--rate: Expected a number \(got 'fast'\)"),
         (["--arm", "nope"], r"nope"),
         (["--end", "0"], r"--end: Expected an end time after start \(0 s\)"),
         (["-o", "/nonexistent/dir/traj.csv"], r"/nonexistent/dir/traj\.csv"),
     ],
-    ids=["missing-clip", "rate", "arm", "end", "output-dir"],
+    ids=["missing-clip", "rate", "rate-text", "arm", "end", "output-dir"],
 )
 def test_bad_input_exits_2_with_one_line(capsys, args, match):
     import re

@@ -163,6 +163,8 @@ def test_help_has_examples(capsys):
         (["--to", "0.3,0,0.2", "--margin", "-1"], "--margin"),
         (["--to", "0.3,0,0.2", "--base-pose", "1,2,3"], "--base-pose goes with --frame world"),
         (["--to", "0.3,0,0.2", "--frame", "world", "--base-pose", "1,2"], "--base-pose: Expected 3 or 6"),
+        (["--to", "0.3,0,0.2", "--frame", "world", "--base-pose", "0,nan,0"], "--base-pose: Expected finite"),
+        (["--to", "0.3,0,0.2", "--frame", "world", "--base-pose", "0,0,0,0,inf,0"], "--base-pose: Expected finite"),
         (["--interactive", "--fast"], "--fast: --interactive runs in real time"),
         (["--interactive"], "--interactive needs a terminal"),
         (["--to", "0.3,0,0.2", "--rate", "0"], "--rate"),
