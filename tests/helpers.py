@@ -819,3 +819,30 @@ def sync_read_ids(entries: Sequence[LogEntry]) -> list[list[int]]:
     """The IDs each SYNC_READ / FAST_SYNC_READ among ``entries`` (the simulator's log) asked, in order."""
     reads = (Instruction.SYNC_READ, Instruction.FAST_SYNC_READ)
     return [list(e.params[4:]) for e in entries if e.instruction in reads]
+
+
+# ------------------------------------------------------------------ a small valid BVH file for error tests
+#: two joints and an End Site, two frames; lines: 1 HIERARCHY, 2 ROOT, 5 root CHANNELS, 6 JOINT Arm, 8 its OFFSET,
+#: 9 its CHANNELS, 16 MOTION, 17 Frames, 18 Frame Time, 19-20 frames
+SMALL_BVH = """\
+HIERARCHY
+ROOT Hips
+{
+  OFFSET 0 0 0
+  CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation
+  JOINT Arm
+  {
+    OFFSET 1 0 0
+    CHANNELS 3 Zrotation Xrotation Yrotation
+    End Site
+    {
+      OFFSET 0 1 0
+    }
+  }
+}
+MOTION
+Frames: 2
+Frame Time: 0.0333333
+1 2 3 4 5 6 7 8 9
+9 8 7 6 5 4 3 2 1
+"""

@@ -10,29 +10,9 @@ import retarget.bvh.parse as bvh_parse
 from retarget.bvh import load_bvh, parse_bvh
 from retarget.bvh.names import joint_roles, not_arm_kind
 from retarget.errors import BvhError
+from tests.helpers import SMALL_BVH
 
-GOOD = """\
-HIERARCHY
-ROOT Hips
-{
-  OFFSET 0 0 0
-  CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation
-  JOINT Arm
-  {
-    OFFSET 1 0 0
-    CHANNELS 3 Zrotation Xrotation Yrotation
-    End Site
-    {
-      OFFSET 0 1 0
-    }
-  }
-}
-MOTION
-Frames: 2
-Frame Time: 0.0333333
-1 2 3 4 5 6 7 8 9
-9 8 7 6 5 4 3 2 1
-"""
+GOOD = SMALL_BVH
 # line numbers of GOOD: 6 JOINT Arm, 8 its OFFSET, 9 its CHANNELS, 17 Frames, 18 Frame Time, 19-20 frames
 
 
