@@ -9,6 +9,11 @@ own packet code; what this module adds is what the SDK leaves to its callers:
   :attr:`Link.alerts` for the caller to read Hardware Error Status;
 * sync reads collect the status packets by ID, so a missing servo is named, not just "a timeout"; a corrupt
   packet is skipped and the replies after it are kept; a retry asks again only the servos still missing;
+* late status packets (a reply that came after its transaction's timeout) are never taken for a later
+  transaction's reply: the bytes waiting before an instruction are dropped (``UrlPortHandler.clearPort``), every
+  packet is matched to its request by ID, expected set and length, and after a timeout the group reads ask a few
+  extra bytes (a different length per try, :data:`PAD_CYCLE`) for :data:`PAD_HORIZON` s, so a late reply to an
+  earlier try has the wrong length; :attr:`Link.late_packets` counts them all;
 * a group read can be split in two (:meth:`Link.send_group_read`, then :meth:`Link.receive_group_read`), so
   the host can work while the status packets are on the wire.
 """
@@ -16,6 +21,7 @@ own packet code; what this module adds is what the SDK leaves to its callers:
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -46,6 +52,14 @@ _PKT_ERROR = 8
 _PKT_PARAMS = 9
 _INST_STATUS = Instruction.STATUS.value
 _NOT_ALERT = 0xFF & ~ALERT_BIT  #: the error-number bits of a status ERR byte
+
+#: After a group-read try in which a servo was silent, its reply may still come, late: the next tries ask 1, 2, ...
+#: PAD_CYCLE extra bytes per servo (a new length per silent try, dropped from the data), so a late reply to an
+#: earlier try has the wrong length and is discarded, not taken for this one's.  Covers replies up to
+#: PAD_CYCLE silent tries late (about PAD_CYCLE x the SDK's timeout).
+PAD_CYCLE = 7
+#: s without a silent try after which group reads ask the plain length again (a reply later than this is not told)
+PAD_HORIZON = 1.0
 
 COMM_RESULT_NAMES: Mapping[int, str] = {
     COMM_PORT_BUSY: "port busy",
@@ -128,6 +142,17 @@ class Link:
         self.asked: dict[int, int] = {}  #: servo ID -> tries of a group read that was not clean at once
         self.answered: dict[int, int] = {}  #: servo ID -> replies it sent to those
         self.clean_tries: dict[tuple[int, ...], int] = {}  #: IDs of a group read -> first tries all answered
+        self.late_count = 0  #: late status packets discarded by the matching (see :attr:`late_packets`)
+        self._pad = 0  #: extra bytes the next group read asks per servo (0: none; see PAD_CYCLE)
+        self._pad_at = 0.0  #: time.monotonic() of the last silent try
+        self._sent_pad = 0  #: the extra bytes of the group read on the wire
+
+    @property
+    def late_packets(self) -> int:
+        """Status packets that came after their transaction's timeout: dropped before an instruction (by a
+        :class:`~drivers.port.UrlPortHandler`), or not matching the request they arrived in (an ID not asked,
+        an ID that already answered, or the wrong length), and discarded."""
+        return self.late_count + int(getattr(self.port, "stale_packets", 0))
 
     @property
     def baud(self) -> int:
@@ -163,13 +188,41 @@ class Link:
 
     # ------------------------------------------------------------------ single servo
 
+    def _txrx(self, tx: list[int], n_params: int) -> tuple[list[int], int, int]:
+        """The SDK's ``txRxPacket`` (the reply of the servo ``tx`` addresses), taking only a status packet with
+        ``n_params`` data bytes: one of another length is a late reply to an earlier request, discarded and
+        counted, and the wait for this one's goes on (within the same timeout)."""
+        rx, result, error = self.ph.txRxPacket(self.port, tx)
+        while result == COMM_SUCCESS and (rx[_PKT_LEN_L] | rx[_PKT_LEN_H] << 8) - 4 != n_params:
+            self.late_count += 1
+            log.debug("late status packet from servo %d (%d bytes) discarded", rx[_PKT_ID], len(rx))
+            while True:
+                rx, result = self.ph.rxPacket(self.port, False)
+                if result != COMM_SUCCESS or rx[_PKT_ID] == tx[_PKT_ID]:
+                    break
+            error = rx[_PKT_ERROR] if result == COMM_SUCCESS else 0
+        return rx, result, error
+
+    def _write_once(self, dxl_id: int, address: int, data: Sequence[int]) -> tuple[int, int]:
+        """One WRITE and its status packet: ``(result, error)`` as the SDK's ``writeTxRx``."""
+        tx = [0] * (12 + len(data))
+        tx[_PKT_ID] = dxl_id
+        tx[_PKT_LEN_L] = (5 + len(data)) & 0xFF
+        tx[_PKT_LEN_H] = (5 + len(data)) >> 8
+        tx[_PKT_INSTRUCTION] = Instruction.WRITE.value
+        tx[_PKT_PARAMS - 1] = address & 0xFF
+        tx[_PKT_PARAMS] = address >> 8
+        tx[_PKT_PARAMS + 1 : _PKT_PARAMS + 1 + len(data)] = data
+        _, result, error = self._txrx(tx, 0)
+        return result, error
+
     def ping_once(self, dxl_id: int) -> PingReply | None:
         """One PING; None when no status packet came back (the SDK's own ``ping``, plus the firmware byte)."""
         tx = [0] * 10
         tx[_PKT_ID] = dxl_id
         tx[_PKT_LEN_L] = 3
         tx[_PKT_INSTRUCTION] = Instruction.PING.value
-        rx, result, error = self.ph.txRxPacket(self.port, tx)
+        rx, result, error = self._txrx(tx, 3)
         if result != COMM_SUCCESS:
             return None
         self._note(StatusPacket(dxl_id, error, b""))
@@ -191,7 +244,13 @@ class Link:
         for attempt in range(self.retries + 1):
             if attempt:
                 self._retrying(f"reading {what or address}", [dxl_id], last)
-            data, result, error = self.ph.readTxRx(self.port, dxl_id, address, length)
+            tx = [0] * 14
+            tx[_PKT_ID] = dxl_id
+            tx[_PKT_LEN_L] = 7
+            tx[_PKT_INSTRUCTION] = Instruction.READ.value
+            tx[_PKT_PARAMS - 1 : _PKT_PARAMS + 3] = [address & 0xFF, address >> 8, length & 0xFF, length >> 8]
+            rx, result, error = self._txrx(tx, length)
+            data = rx[_PKT_PARAMS : _PKT_PARAMS + length] if result == COMM_SUCCESS else []
             if result == COMM_SUCCESS and len(data) == length:
                 reply = self._note(StatusPacket(dxl_id, error, bytes(data)))
                 name = status_error_name(error)
@@ -211,7 +270,7 @@ class Link:
         for attempt in range(self.retries + 1):
             if attempt:
                 self._retrying(f"writing {what or address}", [dxl_id], last)
-            result, error = self.ph.writeTxRx(self.port, dxl_id, address, len(data), list(data))
+            result, error = self._write_once(dxl_id, address, data)
             if result == COMM_SUCCESS:
                 reply = self._note(StatusPacket(dxl_id, error, b""))
                 name = status_error_name(error)
@@ -243,7 +302,7 @@ class Link:
         for attempt in range(self.retries + 1):
             if attempt:
                 self._retrying(f"writing {what}", [dxl_id], comm_result_name(result))
-            result, error = self.ph.writeTxRx(self.port, dxl_id, reg.address, reg.size, data)
+            result, error = self._write_once(dxl_id, reg.address, data)
             if result == COMM_SUCCESS:
                 self._note(StatusPacket(dxl_id, error, b""))
                 name = status_error_name(error)
@@ -286,8 +345,13 @@ class Link:
         if result != COMM_SUCCESS:
             raise self._fail(f"{comm_result_name(result)} (sync write at address {address})", param[:: size + 1])
 
-    def _collect(self, lengths: Mapping[int, int]) -> dict[int, StatusPacket]:
-        """Status packets after a SYNC_READ or BULK_READ, matched by ID until all came or the timeout passed."""
+    def _collect(self, lengths: Mapping[int, int], pad: int = 0) -> dict[int, StatusPacket]:
+        """Status packets after a SYNC_READ or BULK_READ, matched by ID until all came or the timeout passed.
+
+        ``pad``: the extra bytes each servo was asked (dropped from the data).  A packet from an ID not asked,
+        from one that already answered, or of another length is late (a reply to an earlier request): counted
+        in :attr:`late_count` and discarded.
+        """
         replies: dict[int, StatusPacket] = {}
         while len(replies) < len(lengths):
             rx, result = self.ph.rxPacket(self.port, False)
@@ -300,11 +364,10 @@ class Link:
                 break
             dxl_id = rx[_PKT_ID]
             length = lengths.get(dxl_id)
-            if length is None or rx[_PKT_INSTRUCTION] != _INST_STATUS or dxl_id in replies:
-                continue
             n_params = (rx[_PKT_LEN_L] | (rx[_PKT_LEN_H] << 8)) - 4  # minus INST, ERR, CRC16
-            if n_params != length:
-                log.debug("servo %d answered %d bytes instead of %d", dxl_id, n_params, length)
+            if length is None or dxl_id in replies or n_params != length + pad or rx[_PKT_INSTRUCTION] != _INST_STATUS:
+                self.late_count += 1
+                log.debug("late status packet from servo %d (%d data bytes) discarded", dxl_id, n_params)
                 continue
             replies[dxl_id] = self._note(
                 StatusPacket(dxl_id, rx[_PKT_ERROR], bytes(rx[_PKT_PARAMS : _PKT_PARAMS + length]))
@@ -312,15 +375,21 @@ class Link:
         self.port.is_using = False
         return replies
 
-    def _collect_fast(self, ids: Sequence[int], length: int) -> dict[int, StatusPacket] | None:
-        """The one status packet after a FAST_SYNC_READ, split by servo; None when it failed as a whole."""
-        raw, result, _ = self.ph.fastSyncReadRx(self.port, BROADCAST_ID, (length + 4) * len(ids))
-        if result != COMM_SUCCESS or len(raw) < (length + 4) * len(ids) - 2:
+    def _collect_fast(self, ids: Sequence[int], length: int, pad: int = 0) -> dict[int, StatusPacket] | None:
+        """The one status packet after a FAST_SYNC_READ, split by servo; None when it failed as a whole.
+
+        ``pad``: the extra bytes each servo was asked (dropped from the data).
+        """
+        slot = length + pad + 4
+        raw, result, _ = self.ph.fastSyncReadRx(self.port, BROADCAST_ID, slot * len(ids))
+        if result != COMM_SUCCESS or len(raw) < slot * len(ids) - 2:
+            if result == COMM_SUCCESS:  # a plain status packet, late, where the fast one was expected
+                self.late_count += 1
             return None
         replies: dict[int, StatusPacket] = {}
         alerts = self.alerts
-        # slots of ERR ID DATA[length] CRC16 (the last CRC is the packet's); inline, on the tick path
-        for i in range(0, (length + 4) * len(ids), length + 4):
+        # slots of ERR ID DATA[length + pad] CRC16 (the last CRC is the packet's); inline, on the tick path
+        for i in range(0, slot * len(ids), slot):
             dxl_id = raw[i + 1]
             if dxl_id not in ids:
                 return None
@@ -332,10 +401,20 @@ class Link:
 
     def _send_read(self, read: GroupRead, fast: bool) -> bool:
         """Send the instruction of one try of ``read``; False (and the port released) when it did not go out."""
+        pad = self._pad
+        if pad and time.monotonic() - self._pad_at > PAD_HORIZON:
+            pad = self._pad = 0
+        self._sent_pad = pad
         if read.same:
-            result = self.ph.syncReadTx(self.port, read.address, read.length, list(read.ids), len(read.ids), fast)
+            length = read.length + pad
+            result = self.ph.syncReadTx(self.port, read.address, length, list(read.ids), len(read.ids), fast)
         else:
-            result = self.ph.bulkReadTx(self.port, list(read.bulk_param), len(read.bulk_param), False)
+            param = list(read.bulk_param)
+            if pad:
+                for k in range(3, len(param), 5):
+                    n = param[k] | param[k + 1] << 8
+                    param[k], param[k + 1] = (n + pad) & 0xFF, (n + pad) >> 8
+            result = self.ph.bulkReadTx(self.port, param, len(param), False)
         if result == COMM_PORT_BUSY:  # another transaction holds the port: its lock is not ours to clear
             return False
         if result != COMM_SUCCESS:
@@ -347,8 +426,19 @@ class Link:
         """The replies of one try of ``read`` whose instruction was ``sent``: by ID (missing IDs absent), or None
         when a FAST_SYNC_READ failed as a whole."""
         if fast:
-            return self._collect_fast(read.ids, read.length) if sent else None
-        return self._collect(read.lengths) if sent else {}
+            got = self._collect_fast(read.ids, read.length, self._sent_pad) if sent else None
+            if got is None and sent:
+                self._silent_try()
+            return got
+        replies = self._collect(read.lengths, self._sent_pad) if sent else {}
+        if sent and len(replies) < len(read.ids):
+            self._silent_try()
+        return replies
+
+    def _silent_try(self) -> None:
+        """A servo stayed silent: its reply may yet come, late.  The next tries ask another length (PAD_CYCLE)."""
+        self._pad = self._pad % PAD_CYCLE + 1
+        self._pad_at = time.monotonic()
 
     def send_group_read(self, read: GroupRead) -> GroupRead:
         """Send the instruction of ``read`` (from :meth:`GroupRead.plan`) and return without waiting: ``read``

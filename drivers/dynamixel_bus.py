@@ -35,6 +35,8 @@ BusError naming it (and, for staleness, the loss rate seen); close() (or leaving
 the shutdown sequence.  ``recover=True`` instead reboots an alerting servo and configures it again (at most 3
 times each).  Shutdown REST after a hardware error: joints with a faulted servo are not commanded, the others go
 to rest, then torque goes off everywhere; a silent joint servo turns torque off at once (see ``_move_to_rest``).
+The servos outside the position read (the gripper) are watched: a PING each every ``watch_period`` (0.2 s), before
+a position read's request, so a hardware error or a missing servo there ends the run the same way.
 
 Direction is applied by the servo (Drive Mode bit 0), as Interbotix does: every servo of a joint gets the same
 register value ``2048 + offset + q / RAD_PER_PULSE`` in the same SYNC_WRITE and a reversed servo turns its shaft
@@ -150,6 +152,10 @@ class DynamixelBus:
         rest_tolerance: rad; the rest pose counts as reached when every joint is this close.
         shadow_tolerance: rad; torque stays off when a shadow servo reads further than this from its primary.
         recover: on a hardware error, reboot the servo and configure it again instead of raising.
+        watch_period: seconds between the watch reads of the servos outside the position read (the gripper):
+            a PING of each (presence, and the Alert bit of a hardware error) before every
+            ``max(1, round(watch_period / dt))``-th position read (``dt`` 0.01 s when unset), and before every
+            one while one of them is missing.  Default 0.2 s.
         fast_read: FAST_SYNC_READ for positions: True, False, or None = when every servo's firmware has it.
         check_latency: check (and lower) the FTDI latency timer of a /dev/ttyUSBn port.
         clock: the clock for waits (the REST move); a shared ``VirtualClock`` in tests.
@@ -187,6 +193,7 @@ class DynamixelBus:
         rest_tolerance: float = 0.02,
         shadow_tolerance: float = 0.1,
         recover: bool = False,
+        watch_period: float | None = None,
         fast_read: bool | None = None,
         check_latency: bool = True,
         clock: Clock | None = None,
@@ -210,11 +217,16 @@ class DynamixelBus:
             raise ValueError(f"Expected max_stale_ticks >= 0, got {max_stale_ticks}")
         if not 0.0 < max_stale_fraction <= 1.0:
             raise ValueError(f"Expected max_stale_fraction in (0, 1], got {max_stale_fraction}")
+        if watch_period is not None and not (math.isfinite(watch_period) and watch_period > 0):
+            raise ValueError(f"Expected watch_period > 0 seconds, got {watch_period}")
         self.retries = retries
         self.max_stale_ticks = int(max_stale_ticks)
         self.max_stale_fraction = float(max_stale_fraction)
         #: reads in the window of max_stale_fraction: one second of ticks
         self.stale_window = max(1, round(1.0 / dt)) if dt is not None else 100
+        self.watch_period = 0.2 if watch_period is None else float(watch_period)
+        #: position reads between two watch reads of the servos outside the position read (the gripper)
+        self.watch_ticks = max(1, round(self.watch_period / (dt if dt is not None else 0.01)))
         self.settings = ServoSettings(
             profile=self.profile,
             profile_velocity=profile_velocity,
@@ -250,6 +262,8 @@ class DynamixelBus:
             GroupRead.plan(self._position_requests, fast=True),
         )
         self._state_requests = {s.id: (_STATE_START, _STATE_END - _STATE_START) for s in self.servos}
+        #: the servos the position read leaves out (the gripper): the watch PINGs them (presence, Alert bit)
+        self._watched = tuple(s.id for s in self.servos if s.id not in self._position_requests)
         self._servo_offset = np.array([s.offset for s in js], dtype=np.int64)
         # the joint range every servo of the joint can reach: the intersection over its servos
         lower = np.full(arm.n_joints, -np.inf)
@@ -287,6 +301,8 @@ class DynamixelBus:
         self._last_replies: dict[int, StatusPacket] | None = None  #: the last reply of every joint servo
         self._stale_run: dict[int, int] = {}  #: servo ID -> stale reads in a row, now (absent: 0)
         self._stale_history: dict[int, deque[int]] = {}  #: servo ID -> the ticks it was stale in, last second
+        self._watch_run: dict[int, int] = {}  #: watched servo ID -> watch reads it missed in a row, now
+        self._watch_history: dict[int, deque[int]] = {}  #: watched servo ID -> the ticks it was missed in
         self._reset_stale()
 
     # ------------------------------------------------------------------ Bus protocol
@@ -399,6 +415,7 @@ class DynamixelBus:
             stale_reads=self._stale_reads,
             stale_ticks=self._stale_ticks,
             worst_stale=self._worst_stale,
+            late_packets=0 if link is None else link.late_packets,
         )
 
     def read_positions(self) -> np.ndarray:
@@ -421,6 +438,8 @@ class DynamixelBus:
         so the wire is not idle during host work.  Until then no other call may use the bus (BusError).
         """
         link = self._require_active()  # also refuses a second request before the first is collected
+        if self._watched and (self._watch_run or self._ticks % self.watch_ticks == self.watch_ticks - 1):
+            self._watch(link)  # before the request: nothing may use the bus between it and its collect
         self._pending = link.send_group_read(self._position_reads[self._use_fast])
 
     def collect_positions(self) -> np.ndarray:
@@ -618,10 +637,51 @@ class DynamixelBus:
             self._raise_alerts()
         return replies
 
+    def _watch(self, link: Link) -> None:
+        """The watch: a PING of every servo outside the position read (the gripper).
+
+        Its status packet carries the Alert bit, as every one does: a hardware error is handled as in a position
+        read (BusError naming the servo and the alert, or a reboot with ``recover=True``).  A servo still silent
+        after the retries is watched again before every position read, one try each (so a servo that is gone
+        costs one timeout per tick, not ``retries + 1``, and the stop comes within a second), and faults the bus
+        once it was missed for too long, by the position reads' rule (more than ``max_stale_ticks`` watch reads
+        in a row, or ``max_stale_fraction`` of the last second's ticks)."""
+        run = self._watch_run
+        replies = {i for i in self._watched if (link.ping_once(i) if i in run else link.ping(i)) is not None}
+        history, tick, window = self._watch_history, self._ticks, self.stale_window
+        too_long: list[int] = []
+        for dxl_id in self._watched:
+            if dxl_id in replies:
+                run.pop(dxl_id, None)
+                continue
+            n = run[dxl_id] = run.get(dxl_id, 0) + 1
+            seen = history.setdefault(dxl_id, deque())
+            seen.append(tick)
+            while seen[0] <= tick - window:
+                seen.popleft()
+            log.debug("tick %d: watched servo %d silent (%d in a row)", tick, dxl_id, n)
+            if n > self.max_stale_ticks or len(seen) > self.max_stale_fraction * window:
+                too_long.append(dxl_id)
+        if too_long:
+            parts = [
+                f"{i}: missed {run[i]} watch reads in a row, {len(history[i])} in the last second" for i in too_long
+            ]
+            limit = f"more than {self.max_stale_ticks} in a row or {100.0 * self.max_stale_fraction:g}% of 1 s"
+            self._faulted = message = (
+                f"no status packet (PING, the watch) at {self.baud} baud after {self.retries + 1} tries, then one "
+                f"per tick, too long ({limit}): {'; '.join(parts)}; check the cable, power and the baud rate"
+            )
+            link.error_count += 1
+            raise BusError(message, ids=too_long)
+        if link.alerts:
+            self._raise_alerts()
+
     def _reset_stale(self) -> None:
         self._last_replies = None
         self._stale_run = {}
         self._stale_history = {}
+        self._watch_run = {}
+        self._watch_history = {}
         self._stale_reads = 0  #: servo reads that were stale since connect
         self._stale_ticks = 0  #: position reads with at least one stale servo
         self._worst_stale = 0  #: the longest run of stale reads of one servo

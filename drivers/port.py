@@ -23,7 +23,7 @@ from __future__ import annotations
 import importlib
 import logging
 import socket
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import serial
 
@@ -49,6 +49,10 @@ if TYPE_CHECKING:
         def setBaudRate(self, baudrate: int) -> bool: ...
         def getBaudRate(self) -> int: ...
         def setupPort(self, cflag_baud: int) -> bool: ...
+        def setPacketTimeout(self, packet_length: int) -> None: ...
+        def setPacketTimeoutMillis(self, msec: float) -> None: ...
+
+        packet_timeout: float  #: ms this read waits (set by setPacketTimeout)
 
 else:
     from dynamixel_sdk import PortHandler
@@ -100,8 +104,47 @@ def _no_delay(ser: serial.SerialBase) -> None:
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
 
 
+_HEADER = b"\xff\xff\xfd\x00"  #: the start of every Protocol 2.0 packet
+
+
 class UrlPortHandler(PortHandler):
-    """``dynamixel_sdk.PortHandler`` opened through ``serial.serial_for_url``; everything else is the SDK's."""
+    """``dynamixel_sdk.PortHandler`` opened through ``serial.serial_for_url``; everything else is the SDK's.
+
+    Two additions, both on the SDK's own calls:
+
+    * ``clearPort`` (the SDK calls it before every instruction it sends) counts what it drops: bytes already
+      waiting then are replies that came after their transaction's timeout, late by definition
+      (:attr:`stale_packets`, :attr:`stale_bytes`);
+    * ``setPacketTimeout`` also tells a port that models time (the simulator's ``sim://`` on a virtual clock)
+      how long this read waits, so a reply due later is not delivered to it, as on a real port.
+    """
+
+    stale_packets = 0  #: late status packets dropped before an instruction (a partial one counts as one)
+    stale_bytes = 0  #: the bytes they had
+
+    def clearPort(self) -> None:  # noqa: N802 - the SDK's name
+        ser: Any = self.ser  # a pyserial port of any class (the stubs' SerialBase lacks the input-buffer calls)
+        if ser is None:
+            return
+        waiting = ser.in_waiting
+        if waiting:
+            late = ser.read(waiting)
+            self.stale_bytes += len(late)
+            self.stale_packets += max(1, late.count(_HEADER))
+            log.debug("dropped %d late bytes before an instruction", len(late))
+        ser.reset_input_buffer()
+
+    def setPacketTimeout(self, packet_length: int) -> None:  # noqa: N802 - the SDK's name
+        super().setPacketTimeout(packet_length)
+        window = getattr(self.ser, "reply_window", None)
+        if window is not None:
+            window(self.packet_timeout / 1000.0)
+
+    def setPacketTimeoutMillis(self, msec: float) -> None:  # noqa: N802 - the SDK's name
+        super().setPacketTimeoutMillis(msec)
+        window = getattr(self.ser, "reply_window", None)
+        if window is not None:
+            window(self.packet_timeout / 1000.0)
 
     def setupPort(self, cflag_baud: int) -> bool:  # noqa: N802 - the SDK's name
         if self.is_open:

@@ -217,6 +217,7 @@ class Serial(SerialBase):
         self._virtual = False  #: the bus runs on a VirtualClock: waiting for a reply advances it
         self._rx = bytearray()
         self._pending: deque[ScheduledReply] = deque()
+        self._deadline = float("inf")  #: bus time after which a reply is too late for the current read
         super().__init__(*args, **kwargs)
 
     # ------------------------------------------------------------------ open / close
@@ -260,6 +261,19 @@ class Serial(SerialBase):
         while self._pending and self._pending[0].due <= now:
             self._rx += self._pending.popleft().data
 
+    def reply_window(self, timeout: float) -> None:
+        """The reader waits ``timeout`` s from now for its reply (``drivers.port.UrlPortHandler`` calls this with
+        the SDK's packet timeout).
+
+        On a virtual clock a read jumps the clock to a reply still on the wire, which would wait out any delay:
+        a reply due after this window is not delivered to the read (the clock goes to the end of the window, the
+        read returns what is there, and the SDK times out in real time); it arrives in the receive buffer once the
+        clock passes its time, and the next instruction's ``clearPort`` drops it as late.  No effect on a real
+        clock, where time itself does this.
+        """
+        if self._virtual and self.bus is not None:
+            self._deadline = self.bus.clock.now() + timeout
+
     def write(self, b: ReadableBuffer, /) -> int:
         if not self.is_open or self.bus is None:
             raise PortNotOpenError()
@@ -294,7 +308,14 @@ class Serial(SerialBase):
             if len(out) >= size:
                 break
             if self._pending and self._virtual:
-                self.bus.clock.sleep_until(self._pending[0].due)  # waiting on a virtual wire is free
+                due = self._pending[0].due
+                if due <= self._deadline:
+                    self.bus.clock.sleep_until(due)  # waiting on a virtual wire is free
+                    continue
+                if timeout == 0:  # too late for this read: the reader times out, as on a real port, and
+                    self.bus.clock.sleep_until(self._deadline)  # its wait is bus time spent
+                    break
+                self._deadline = float("inf")  # a blocking read waits it out
                 continue
             if timeout == 0:
                 break

@@ -104,3 +104,34 @@ def test_a_servo_lost_most_of_the_time_stops_cleanly_at_the_window(arm):
     assert re.search(r"\d+% of \d+ replies lost", str(outcome))
     assert_within_limits(arm, records, simbus)
     assert records and sum(r.stale for r in records) > 0
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("rate", [0.05, 0.20])
+def test_a_lossy_gripper_is_watched_without_stopping_the_run(arm, rate, seed):
+    """The gripper (9) is outside the position read: the watch PINGs it every 0.2 s; losing its replies costs
+    retries, never the run."""
+    faults = sim.Faults(servos={9: sim.ReplyFaults(drop=rate)}, seed=seed)
+    outcome, records, simbus = run_noisy(arm, faults, after_connect=True)
+    assert not isinstance(outcome, BusError), outcome
+    assert outcome.ticks == 101 and outcome.bus_errors == 0  # type: ignore[attr-defined]
+    assert_within_limits(arm, records, simbus)
+
+
+@pytest.mark.parametrize(
+    ("fault", "expected"),
+    [
+        pytest.param(sim.Faults(unplug={9: 1.2}), r"^servo 9: no status packet \(PING, the watch\)", id="unplug"),
+        pytest.param(
+            sim.Faults.from_options(hwerror=["9:overload@1.2"]), r"^servo 9: hardware error: overload; ", id="overload"
+        ),
+    ],
+)
+def test_a_gripper_fault_stops_the_run_cleanly(arm, fault, expected):
+    """Unplugged or overloaded 1.2 s after the bus started (during the clip): a clean stop naming servo 9, with
+    every goal until then within the limits."""
+    outcome, records, simbus = run_noisy(arm, fault)
+    assert isinstance(outcome, BusError) and outcome.ids == (9,)
+    with pytest.raises(BusError, match=expected):
+        raise outcome
+    assert_within_limits(arm, records, simbus)

@@ -298,7 +298,9 @@ def test_a_fast_live_stream_lags_at_most_max_lag(arm, session):
 
     result, _, simbus, _, follower = session(Source, max_ticks=2000, on_tick=stream, max_lag=0.25, ref=followers)
     assert follower.skipped > 100 and result.skipped == follower.skipped
-    assert max(lags) <= 0.25 + 0.01 + 1e-9  # one tick of slack: targets are taken at the next tick
+    # one tick of slack (targets are taken at the next tick), plus that tick's wire time beyond its slot on the
+    # virtual clock (the driver's watch ping of the gripper, every 0.2 s: about 0.25 ms)
+    assert max(lags) <= 0.25 + 0.01 + 0.001
     assert result.reached_target
     np.testing.assert_allclose(wx250s_tool(servo_joint_angles(simbus, arm)), [0.25, 0.099, 0.2], atol=3e-3)
 
