@@ -416,6 +416,7 @@ class DynamixelBus:
             stale_ticks=self._stale_ticks,
             worst_stale=self._worst_stale,
             late_packets=0 if link is None else link.late_packets,
+            reboots=sum(self._recoveries.values()),
         )
 
     def read_positions(self) -> np.ndarray:

@@ -27,7 +27,7 @@ import tty
 from collections import deque
 from typing import Self
 
-from retarget.control.clock import VirtualClock
+from retarget.control.clock import Clock, VirtualClock
 from sim.bus import ScheduledReply, SimBus
 
 log = logging.getLogger(__name__)
@@ -108,19 +108,28 @@ class SimServer:
                 readable, _, _ = select.select([fd, self._wake_r], [], [], timeout)
             except (OSError, ValueError):  # closed under us
                 break
-            if fd in readable:
-                data = self._recv()
-                if data:
-                    self.bus.line_baud = self._line_baud()
-                    replies = self.bus.feed(data)
-                    if replies:
-                        self._pending = deque(sorted([*self._pending, *replies], key=lambda r: r.due))
-            while self._pending:
-                if virtual:
-                    clock.sleep_until(self._pending[0].due)
-                elif self._pending[0].due > clock.now():
+            try:
+                self._serve_once(fd in readable, clock, virtual)
+            except OSError:
+                if self._stop.is_set():  # close() released the pty or socket while this tick was under way
                     break
-                self._send(self._pending.popleft().data)
+                raise
+
+    def _serve_once(self, readable: bool, clock: Clock, virtual: bool) -> None:
+        """Feed what arrived to the bus, then send the replies that are due."""
+        if readable:
+            data = self._recv()
+            if data:
+                self.bus.line_baud = self._line_baud()
+                replies = self.bus.feed(data)
+                if replies:
+                    self._pending = deque(sorted([*self._pending, *replies], key=lambda r: r.due))
+        while self._pending:
+            if virtual:
+                clock.sleep_until(self._pending[0].due)
+            elif self._pending[0].due > clock.now():
+                break
+            self._send(self._pending.popleft().data)
 
 
 class PtyServer(SimServer):

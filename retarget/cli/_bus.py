@@ -279,7 +279,10 @@ def build_bus(args: argparse.Namespace, arm: Arm, config: LoopConfig | None = No
             arm, clock=VirtualClock() if args.fast else MonotonicClock(), faults=sim.Faults(wire=True)
         )
     elif port.startswith("sim://@"):
-        simbus = bus_from_url(port)
+        try:
+            simbus = bus_from_url(port)
+        except KeyError as exc:  # no bus registered under that name in this process
+            raise ConfigError(str(exc.args[0]), key="--port", value=port) from exc
     else:
         url = port + (("&" if "?" in port else "?") + "clock=virtual" if args.fast else "")
         simbus = bus_from_url(url)

@@ -45,6 +45,7 @@ class BusStatus:
     stale_reads: int = 0
     stale_ticks: int = 0  #: position reads with at least one stale servo
     worst_stale: int = 0  #: the longest run of consecutive stale reads of one servo
+    reboots: int = 0  #: servos rebooted and configured again after a hardware error (recover=True)
     late_packets: int = 0  #: status packets that came after their transaction's timeout (dropped or discarded)
 
 

@@ -227,6 +227,8 @@ def run_ticks(
         stats.stale_reads = end.stale_reads - status.stale_reads
         stats.stale_ticks = end.stale_ticks - status.stale_ticks
         stats.worst_stale = end.worst_stale
+        stats.bus_reboots = end.reboots - status.reboots
+        stats.late_packets = end.late_packets - status.late_packets
     return stats
 
 

@@ -80,6 +80,8 @@ class TickStats(TickSeries):
     bus_retries: int = 0
     stale_reads: int = 0  #: servo reads that came back stale (the servo's last position stood in)
     stale_ticks: int = 0  #: read-backs with at least one stale servo
+    bus_reboots: int = 0  #: servos rebooted after a hardware error (recover=True), whole run
+    late_packets: int = 0  #: status packets that came too late and were dropped, whole run
     worst_stale: int = 0  #: the longest run of consecutive stale reads of one servo (since the bus connected)
     q_cmd: npt.NDArray[np.float64] | None = None  #: the last goals sent ``(n_joints,)`` rad
     q_present: npt.NDArray[np.float64] | None = None  #: the last positions read ``(n_joints,)`` rad
@@ -124,6 +126,8 @@ class TickStats(TickSeries):
             stale_reads=self.stale_reads,
             stale_ticks=self.stale_ticks,
             worst_stale_ticks=self.worst_stale,
+            bus_reboots=self.bus_reboots,
+            late_packets=self.late_packets,
             lead_in_ticks=self.lead_in_ticks,
             lead_in_s=self.lead_in_time,
         )

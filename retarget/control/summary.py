@@ -55,6 +55,8 @@ class RunSummary:
     stale_reads: int = 0
     stale_ticks: int = 0  #: read-backs with at least one stale servo, whole run
     worst_stale_ticks: int = 0  #: the longest run of consecutive stale reads of one servo
+    bus_reboots: int = 0  #: servos rebooted and configured again after a hardware error (--recover), whole run
+    late_packets: int = 0  #: status packets that came after their read timed out, dropped, whole run
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dict (floats rounded to 4 decimals)."""
@@ -77,6 +79,10 @@ class RunSummary:
                 f"  stale reads: {self.stale_reads} (a servo silent after the retries, its last position used) in "
                 f"{self.stale_ticks} ticks; worst {self.worst_stale_ticks} ticks in a row"
             ]
+        if self.bus_reboots or self.late_packets:
+            stale.append(
+                f"  servo reboots (recovery): {self.bus_reboots}; late status packets dropped: {self.late_packets}"
+            )
         return "\n".join(
             [
                 f"{head}: {self.clip} on {self.arm}: {self.frames} frames, {self.duration_s:.2f} s of motion, "
@@ -127,6 +133,8 @@ def summarize(
     stale_reads: int = 0,
     stale_ticks: int = 0,
     worst_stale_ticks: int = 0,
+    bus_reboots: int = 0,
+    late_packets: int = 0,
 ) -> RunSummary:
     """A :class:`RunSummary` from per-tick arrays ``(n_ticks,)`` (errors metres, times seconds).
 
@@ -172,4 +180,6 @@ def summarize(
         stale_reads=int(stale_reads),
         stale_ticks=int(stale_ticks),
         worst_stale_ticks=int(worst_stale_ticks),
+        bus_reboots=int(bus_reboots),
+        late_packets=int(late_packets),
     )

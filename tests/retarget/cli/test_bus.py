@@ -71,3 +71,10 @@ def test_velocity_scale_reaches_the_servos_profile(arm, registered, capsys, comm
     assert code == 0, capsys.readouterr().err
     expected = int(rad_s_to_velocity_units(float(scale) * math.pi))  # wx250s: every joint 3.14 rad/s
     assert profile_velocities(simbus, arm) == [expected] * 8
+
+
+def test_a_sim_name_with_no_bus_is_one_line(capsys):
+    assert main(["replay", "--port", "sim://@nobus", "--fast"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("retarget: --port: no SimBus registered as 'nobus' (registered: ")
+    assert err.endswith(") (got 'sim://@nobus')\n") and err.count("\n") == 1

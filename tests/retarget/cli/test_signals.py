@@ -273,7 +273,9 @@ def test_recover_reaches_the_driver_and_rides_through_a_hardware_error(arm, caps
     url = "sim://wx250s?hwerror=3:overload@1"
     assert main(["replay", "--fast", "--end", "2", "--port", url]) == 4
     assert "hardware error: overload" in capsys.readouterr().err
-    assert main(["replay", "--fast", "--end", "2", "--port", url, "--recover"]) == 0
+    assert main(["replay", "--fast", "--end", "2", "--port", url, "--recover", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["bus_reboots"] >= 1  # the reboot is counted in the summary
     for command in ("replay", "teleop"):
         with pytest.raises(SystemExit):
             main([command, "--help"])
