@@ -30,6 +30,9 @@ from retarget.errors import ConfigError
 BITS_PER_BYTE = 10  #: 8N1: start bit, 8 data bits, stop bit
 
 
+MAX_SECONDS = 86400.0  #: a fault's time or delay; NaN, inf and negative values are errors
+
+
 def wire_time(n_bytes: int, baud: int) -> float:
     """Seconds ``n_bytes`` take on a ``baud`` bps 8N1 line."""
     return n_bytes * BITS_PER_BYTE / baud
@@ -48,8 +51,8 @@ class ReplyFaults:
             p = getattr(self, name)
             if not 0.0 <= p <= 1.0:
                 raise ConfigError("Expected a fraction in [0, 1]", key=name, value=p)
-        if self.delay < 0:
-            raise ConfigError("Expected a delay >= 0", key="delay", value=self.delay)
+        if not 0.0 <= self.delay <= MAX_SECONDS:
+            raise ConfigError(f"Expected a delay from 0 to {MAX_SECONDS:g} s", key="delay", value=self.delay)
 
 
 @dataclass(frozen=True)
@@ -194,8 +197,8 @@ def _number(text: str, source: str | None, key: str, item: str) -> float:
         value = float(text)
     except ValueError:
         raise ConfigError("Expected a number", path=source, key=key, value=item) from None
-    if value < 0:
-        raise ConfigError("Expected a value >= 0", path=source, key=key, value=item)
+    if not 0.0 <= value <= MAX_SECONDS * 1000.0:  # milliseconds for delay_ms, seconds for the times: both far
+        raise ConfigError("Expected a finite value >= 0", path=source, key=key, value=item)
     return value
 
 

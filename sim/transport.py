@@ -180,6 +180,8 @@ def bus_from_url(url: str, *, port_baud: int | None = None) -> SimBus:
     baud_value, rdt_value, boot_ms = number("baud"), number("rdt"), number("boot_ms")
     baud = None if baud_value is None else int(baud_value)
     rdt = None if rdt_value is None else int(rdt_value)
+    if boot_ms is not None and not 0.0 <= boot_ms <= 60_000.0:
+        raise ConfigError("Expected a number of milliseconds from 0 to 60000", path=url, key="boot_ms", value=boot_ms)
     boot = 0.0 if boot_ms is None else boot_ms / 1000.0
     if where:
         if "ids" in query or "model" in query:

@@ -47,7 +47,7 @@ def test_from_query_takes_the_last_flag():
     [
         pytest.param({"drop": ["lots"]}, "drop: Expected a number", id="drop-text"),
         pytest.param({"drop": ["1.5"]}, r"drop: Expected a fraction in \[0, 1\]", id="drop-range"),
-        pytest.param({"delay_ms": ["-3"]}, "delay_ms: Expected a value >= 0", id="delay-negative"),
+        pytest.param({"delay_ms": ["-3"]}, "delay_ms: Expected a finite value >= 0", id="delay-negative"),
         pytest.param({"corrupt": ["x:0.1"]}, "corrupt: Expected a servo ID", id="servo-id"),
         pytest.param({"unplug": ["4"]}, "unplug: Expected ID@SECONDS", id="unplug-form"),
         pytest.param({"unplug": ["300@1"]}, "unplug: Expected a servo ID 0..252", id="unplug-id"),
