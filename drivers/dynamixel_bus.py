@@ -649,19 +649,15 @@ class DynamixelBus:
         in a row, or ``max_stale_fraction`` of the last second's ticks)."""
         run = self._watch_run
         replies = {i for i in self._watched if (link.ping_once(i) if i in run else link.ping(i)) is not None}
-        history, tick, window = self._watch_history, self._ticks, self.stale_window
+        history = self._watch_history
         too_long: list[int] = []
         for dxl_id in self._watched:
             if dxl_id in replies:
                 run.pop(dxl_id, None)
                 continue
-            n = run[dxl_id] = run.get(dxl_id, 0) + 1
-            seen = history.setdefault(dxl_id, deque())
-            seen.append(tick)
-            while seen[0] <= tick - window:
-                seen.popleft()
-            log.debug("tick %d: watched servo %d silent (%d in a row)", tick, dxl_id, n)
-            if n > self.max_stale_ticks or len(seen) > self.max_stale_fraction * window:
+            missed_too_long = self._count_miss(run, history, dxl_id)
+            log.debug("tick %d: watched servo %d silent (%d in a row)", self._ticks, dxl_id, run[dxl_id])
+            if missed_too_long:
                 too_long.append(dxl_id)
         if too_long:
             parts = [
@@ -694,20 +690,16 @@ class DynamixelBus:
         last = self._last_replies
         assert last is not None  # receive_group_read raised otherwise
         missing = [i for i in ids if i not in replies]
-        run, history, tick, window = self._stale_run, self._stale_history, self._ticks, self.stale_window
+        run, history, tick = self._stale_run, self._stale_history, self._ticks
         for i in [i for i in run if i in replies]:
             del run[i]
         self._stale_ticks += 1
         self._stale_reads += len(missing)
         too_long: list[int] = []
         for i in missing:
-            n = run[i] = run.get(i, 0) + 1
-            self._worst_stale = max(self._worst_stale, n)
-            seen = history.setdefault(i, deque())
-            seen.append(tick)
-            while seen[0] <= tick - window:
-                seen.popleft()
-            if n > self.max_stale_ticks or len(seen) > self.max_stale_fraction * window:
+            missed_too_long = self._count_miss(run, history, i)
+            self._worst_stale = max(self._worst_stale, run[i])
+            if missed_too_long:
                 too_long.append(i)
         if too_long:
             self._faulted = message = self._stale_message(link, too_long)
@@ -716,6 +708,18 @@ class DynamixelBus:
         log.debug("tick %d: servo %s stale", tick, ", ".join(map(str, missing)))
         merged = {i: replies[i] if i in replies else last[i] for i in ids}
         return merged
+
+    def _count_miss(self, run: dict[int, int], history: dict[int, deque[int]], dxl_id: int) -> bool:
+        """One more read that servo ``dxl_id`` missed (a position read's or the watch's): its run in a row in ``run``,
+        this tick in its ``history`` of the last second (``stale_window`` ticks).  True once it was missed too long:
+        more than ``max_stale_ticks`` in a row, or more than ``max_stale_fraction`` of the window."""
+        n = run[dxl_id] = run.get(dxl_id, 0) + 1
+        tick, window = self._ticks, self.stale_window
+        seen = history.setdefault(dxl_id, deque())
+        seen.append(tick)
+        while seen[0] <= tick - window:
+            seen.popleft()
+        return n > self.max_stale_ticks or len(seen) > self.max_stale_fraction * window
 
     def _stale_message(self, link: Link, ids: Sequence[int]) -> str:
         """Why servos ``ids`` are stale too long: their runs, their share of the last second, the reply loss."""
