@@ -83,6 +83,10 @@ class BusError(RetargetError, OSError):
     def __init__(self, message: str, *, ids: Iterable[int] = ()):
         self.message = message
         self.ids = tuple(ids)
+        #: what a control loop had done when it met this error: its ``TickStats`` (set by ``run_ticks``) and its
+        #: ``RunSummary`` (set by ``ControlLoop.run`` and ``run_teleop``); None when no loop was running
+        self.stats: object | None = None
+        self.summary: object | None = None
         prefix = f"servo {', '.join(map(str, self.ids))}: " if self.ids else ""
         super().__init__(f"{prefix}{message}")
 

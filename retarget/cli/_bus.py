@@ -4,8 +4,8 @@
 (a virtual clock shared by the loop and the simulator), ``--shutdown``, ``--telemetry``, ``--json`` and
 ``--progress``, ``--recover``; :func:`build_bus` turns them into a driver and the clock the loop must run on, and
 :func:`signals_stop` makes the first Ctrl-C, SIGTERM or SIGHUP stop the loop at a tick boundary so the bus's
-shutdown runs.  :class:`TickTally` keeps what a run's summary needs, for a run that a bus failure ends
-(``--json`` then prints that summary with the failure in it, :func:`failure_summary`).
+shutdown runs.  A run that a bus failure ends carries its summary on the ``BusError`` (``exc.summary``, set by
+the control loop); ``--json`` then prints it with the failure in it (:func:`failure_summary`).
 """
 
 from __future__ import annotations
@@ -13,8 +13,6 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
-import time
-from array import array
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -28,8 +26,6 @@ from retarget.arm import Arm
 from retarget.control import LoopConfig
 from retarget.control.bus import Bus
 from retarget.control.clock import Clock, MonotonicClock, VirtualClock
-from retarget.control.loop import TickRecord
-from retarget.control.summary import RunSummary, summarize
 from retarget.errors import BusError, ConfigError
 from sim.transport import bus_from_url
 
@@ -150,75 +146,6 @@ def signals_stop(stop: Callable[[], None]) -> Iterator[Stopped]:
     finally:
         for signum, old in previous.items():
             signal.signal(signum, old if old is not None else signal.SIG_DFL)
-
-
-class TickTally:
-    """What a run's summary needs from its ticks, kept as they come (an ``on_tick`` callback, passing each
-    record on to ``then``): the summary of a run that a bus failure ends, which the loop never returns."""
-
-    def __init__(self, then: Callable[[TickRecord], None] | None = None):
-        self.then = then
-        self.errors, self.compute, self.bus = array("d"), array("d"), array("d")
-        self.sweeps = array("q")
-        self.converged, self.clamped, self.limited = bytearray(), bytearray(), bytearray()
-        self.overruns = self.retries = self.lead_in_ticks = 0
-        self.last_slot = -1
-        self.wall0: float | None = None  #: perf_counter at the first clip tick
-
-    def __call__(self, r: TickRecord) -> None:
-        self.retries += r.bus_retries
-        if r.lead_in:
-            self.lead_in_ticks += 1
-        else:
-            if self.wall0 is None:
-                self.wall0 = time.perf_counter()
-            self.errors.append(r.ik_error)
-            self.sweeps.append(r.ik_sweeps)
-            self.converged.append(r.ik_converged)
-            self.clamped.append(r.clamped)
-            self.limited.append(r.velocity_limited)
-            self.compute.append(r.compute_time)
-            self.bus.append(r.bus_time)
-            self.overruns += r.overrun
-            self.last_slot = max(self.last_slot, r.tick)
-        if self.then is not None:
-            self.then(r)
-
-    def summary(
-        self, *, arm: str, clip: str, rate: float, frames: int = 0, speed: float = 1.0, bus: Bus | None = None
-    ) -> RunSummary:
-        """The summary of the ticks so far (``bus``: its error count since connect)."""
-        run_time = (self.last_slot + 1) / rate if self.last_slot >= 0 else 0.0
-        status = None
-        if bus is not None:
-            try:
-                status = bus.status()
-            except Exception:  # noqa: BLE001 - the summary of a failed run must not fail itself
-                status = None
-        return summarize(
-            arm=arm,
-            clip=clip,
-            dry_run=False,
-            interrupted=False,
-            frames=frames,
-            rate=rate,
-            duration_s=run_time * speed,
-            run_time_s=run_time,
-            wall_time_s=0.0 if self.wall0 is None else time.perf_counter() - self.wall0,
-            ik_error_m=np.asarray(self.errors),
-            ik_sweeps=np.asarray(self.sweeps),
-            ik_converged=np.asarray(self.converged, dtype=bool),
-            clamped=np.asarray(self.clamped, dtype=bool),
-            velocity_limited=np.asarray(self.limited, dtype=bool),
-            compute_s=np.asarray(self.compute),
-            bus_s=np.asarray(self.bus),
-            overruns=self.overruns,
-            skipped_ticks=0,
-            bus_errors=max(1, status.errors) if status is not None else 1,
-            bus_retries=max(self.retries, status.retries) if status is not None else self.retries,
-            lead_in_ticks=self.lead_in_ticks,
-            lead_in_s=self.lead_in_ticks / rate,
-        )
 
 
 def failure_summary(summary: dict[str, Any], exc: BusError) -> dict[str, Any]:

@@ -28,7 +28,6 @@ from retarget.bvh.motion import Motion
 from retarget.cli import print_json
 from retarget.cli._arm import add_arm_arguments, load_arm_option
 from retarget.cli._bus import (
-    TickTally,
     add_bus_arguments,
     build_bus,
     check_bus_options,
@@ -39,6 +38,7 @@ from retarget.cli._bus import (
 from retarget.control import ControlLoop, LoopConfig, TickRecord
 from retarget.control.bus import connected
 from retarget.control.clock import Clock, MonotonicClock, VirtualClock
+from retarget.control.summary import RunSummary
 from retarget.control.telemetry import TelemetryWriter
 from retarget.errors import BusError, ConfigError
 from retarget.mapping import Targets, retarget_targets
@@ -249,7 +249,6 @@ def run(args: argparse.Namespace) -> int:
     )
     setup = None if args.dry_run else build_bus(args, inputs.arm, config)
     telemetry = None
-    tally: TickTally | None = None
     try:
         clock: Clock = setup.clock if setup is not None else VirtualClock() if args.fast else MonotonicClock()
         loop = ControlLoop(inputs.arm, inputs.targets, config=config, clock=clock, clip_name=inputs.clip.name)
@@ -263,15 +262,11 @@ def run(args: argparse.Namespace) -> int:
             if setup is None:  # no arm to lead in: start on the first target's solution, as export does
                 summary = loop.run(None, q_start=loop.initial_pose())
             else:
-                if args.json:  # a bus failure ends the run without a summary: keep the ticks' figures
-                    loop.on_tick = tally = TickTally(loop.on_tick)
                 with connected(setup.bus):
                     summary = loop.run(setup.bus)
     except BusError as exc:
-        if tally is not None and setup is not None:
-            partial = tally.summary(arm=inputs.arm.name, clip=inputs.clip.name, rate=config.rate,
-                                    frames=loop.frames, speed=config.speed, bus=setup.bus)  # fmt: skip
-            print_json(failure_summary(partial.to_dict(), exc))
+        if args.json and isinstance(exc.summary, RunSummary):  # the loop's summary of the ticks that ran
+            print_json(failure_summary(exc.summary.to_dict(), exc))
         raise
     finally:
         if telemetry is not None:

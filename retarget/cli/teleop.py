@@ -28,7 +28,6 @@ from retarget.cli._arm import add_arm_arguments, load_arm_option
 from retarget.cli._bus import (
     BusSetup,
     Stopped,
-    TickTally,
     add_bus_arguments,
     build_bus,
     check_bus_options,
@@ -41,6 +40,7 @@ from retarget.cli.replay import number, optional_count, optional_number
 from retarget.cli.tui import Jog, KeySource, TerminalUI
 from retarget.control.bus import connected
 from retarget.control.loop import LoopConfig, TickRecord
+from retarget.control.summary import RunSummary
 from retarget.control.telemetry import TelemetryWriter
 from retarget.errors import BusError, ConfigError
 from retarget.teleop import Follower, TeleopResult, run_teleop, tool_point
@@ -215,7 +215,7 @@ def run(args: argparse.Namespace) -> int:
     setup = build_bus(args, arm, config)
     source: Source | None = None
     telemetry: TelemetryWriter | None = None
-    on_tick: TickTally | TelemetryWriter | None = None
+    on_tick: TelemetryWriter | None = None
     stop = threading.Event()
     stopped = Stopped()
     try:
@@ -225,8 +225,6 @@ def run(args: argparse.Namespace) -> int:
         if args.telemetry is not None:
             out = sys.stdout if args.telemetry == "-" else args.telemetry
             on_tick = telemetry = TelemetryWriter(out, arm.joint_names).open()
-        if args.json:  # a bus failure ends the run without a summary: keep the ticks' figures
-            on_tick = TickTally(telemetry)
         with signals_stop(stop.set) as stopped, connected(setup.bus):
             if source is None:
                 result = _interactive(arm, setup, gate, config, opts, stop, on_tick)
@@ -256,9 +254,8 @@ def run(args: argparse.Namespace) -> int:
                     name=_name(args),
                 )
     except BusError as exc:
-        if isinstance(on_tick, TickTally):
-            partial = on_tick.summary(arm=arm.name, clip=_name(args), rate=config.rate, bus=setup.bus)
-            print_json(failure_summary({**partial.to_dict(), "teleop": None}, exc))
+        if args.json and isinstance(exc.summary, RunSummary):  # the loop's summary of the ticks that ran
+            print_json(failure_summary({**exc.summary.to_dict(), "teleop": None}, exc))
         raise
     finally:
         if source is not None:

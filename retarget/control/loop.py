@@ -36,6 +36,7 @@ in the arm's base frame.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import threading
@@ -47,14 +48,14 @@ import numpy as np
 import numpy.typing as npt
 
 from retarget.arm.model import Arm
-from retarget.control.bus import Bus
+from retarget.control.bus import Bus, BusStatus
 from retarget.control.clock import Clock
 from retarget.control.limits import StepLimiter
 from retarget.control.readback import ReadBack, SentTick, read_back_for
 from retarget.control.schedule import Schedule
 from retarget.control.source import JointGoal, TargetSource, TickSolver, TickTarget, as_target_source
 from retarget.control.stats import StatsRecorder, TickStats
-from retarget.errors import ConfigError
+from retarget.errors import BusError, ConfigError
 
 __all__ = ["JointGoal", "LoopConfig", "TargetSource", "TickRecord", "TickStats", "TickTarget", "run_ticks"]
 
@@ -220,7 +221,20 @@ def run_ticks(
     run = _Run(arm, source, solver, config, q_cmd, first, recorder)
     read_back = read_back_for(bus, reporter, pipeline=pipeline)
     schedule = Schedule(clock, rate=config.rate, first=first)  # slot `first` starts now
-    stats = run.run(schedule, read_back, stop if stop is not None else threading.Event())
+    try:
+        stats = run.run(schedule, read_back, stop if stop is not None else threading.Event())
+    except BusError as exc:  # the ticks so far go with the error, for the caller's summary of a failed run
+        exc.stats = stats = recorder.finish(wall1=time.perf_counter(), last_slot=run.last_slot)
+        stats.q_cmd, stats.q_present = run.q_cmd, read_back.present
+        with contextlib.suppress(Exception):  # the counts of a failed bus are a bonus, never a second error
+            _add_bus_counts(stats, bus, status)
+        raise
+    _add_bus_counts(stats, bus, status)
+    return stats
+
+
+def _add_bus_counts(stats: TickStats, bus: Bus | None, status: BusStatus | None) -> None:
+    """The run's share of the bus's counters: errors, retries, stale reads, reboots, late packets."""
     if bus is not None and status is not None:
         end = bus.status()
         stats.bus_errors, stats.bus_retries = end.errors - status.errors, end.retries - status.retries
@@ -229,7 +243,6 @@ def run_ticks(
         stats.worst_stale = end.worst_stale
         stats.bus_reboots = end.reboots - status.reboots
         stats.late_packets = end.late_packets - status.late_packets
-    return stats
 
 
 def _start_pose(arm: Arm, bus: Bus | None, q_start: npt.NDArray[np.float64] | None) -> npt.NDArray[np.float64]:

@@ -55,7 +55,7 @@ from retarget.control.loop import LoopConfig, TickRecord, run_ticks
 from retarget.control.source import JointGoal, TargetSource, TickGoal, TickSolver, TickTarget
 from retarget.control.stats import TickStats
 from retarget.control.summary import RunSummary
-from retarget.errors import ConfigError
+from retarget.errors import BusError, ConfigError
 from retarget.ik.ccd import CCDSolver
 from retarget.mapping.targets import Targets
 from retarget.mapping.workspace import ik_weights
@@ -210,20 +210,29 @@ class ControlLoop:
             lead_in = bus is not None
         lead_to = self.initial_pose() if lead_in and self.config.lead_in_speed > 0 else None
         source = ClipSource(self, lead_in_to=lead_to)
-        ticks = run_ticks(
-            self.arm,
-            source,
-            self.solver,
-            config=self.config,
-            clock=self.clock,
-            bus=bus,
-            q_start=q_start,
-            on_tick=self.on_tick,
-            on_progress=self.on_progress,
-            progress_time=self.progress_time,
-            stop=self._stop,
-            pipeline=self.pipeline,
-        )
+        try:
+            ticks = run_ticks(
+                self.arm,
+                source,
+                self.solver,
+                config=self.config,
+                clock=self.clock,
+                bus=bus,
+                q_start=q_start,
+                on_tick=self.on_tick,
+                on_progress=self.on_progress,
+                progress_time=self.progress_time,
+                stop=self._stop,
+                pipeline=self.pipeline,
+            )
+        except BusError as exc:  # the summary of the ticks that ran goes with the error
+            if isinstance(exc.stats, TickStats):
+                exc.summary = self._summary(exc.stats)
+            raise
+        return self._summary(ticks)
+
+    def _summary(self, ticks: TickStats) -> RunSummary:
+        """The summary of a run that ended with ``ticks``."""
         played = (ticks.last_slot + 1) * self.config.speed / self.config.rate if ticks.last_slot >= 0 else 0.0
         return ticks.summary(arm=self.arm.name, clip=self.clip_name, frames=self.frames, duration_s=played)
 

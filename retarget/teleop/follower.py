@@ -47,7 +47,7 @@ from retarget.control.loop import LoopConfig, TickRecord, run_ticks
 from retarget.control.source import HOLD, TargetSource, TickSolver, TickTarget
 from retarget.control.stats import TickStats
 from retarget.control.summary import RunSummary
-from retarget.errors import ConfigError, require_positive
+from retarget.errors import BusError, ConfigError, require_positive
 from retarget.ik.ccd import CCDSolver, IKResult
 from retarget.mapping.config import MappingConfig
 from retarget.mapping.workspace import ik_weights
@@ -508,18 +508,25 @@ def run_teleop(
     """
     tolerance = require_tolerance(tolerance)
     run = _Run(follower, settle_ticks=max(1, int(round(require_positive(settle_time, "settle_time") * config.rate))))
-    stats = run_ticks(
-        arm,
-        run,
-        solver if solver is not None else PoseSolver(arm, config),
-        config=config,
-        clock=clock,
-        bus=bus,
-        q_start=q_start,
-        on_tick=on_tick,
-        on_progress=on_progress,
-        stop=stop,
-    )
+    try:
+        stats = run_ticks(
+            arm,
+            run,
+            solver if solver is not None else PoseSolver(arm, config),
+            config=config,
+            clock=clock,
+            bus=bus,
+            q_start=q_start,
+            on_tick=on_tick,
+            on_progress=on_progress,
+            stop=stop,
+        )
+    except BusError as exc:  # the summary of the ticks that ran goes with the error
+        if isinstance(exc.stats, TickStats):
+            exc.summary = exc.stats.summary(
+                arm=arm.name, clip=name, frames=follower.received, duration_s=exc.stats.run_time
+            )
+        raise
     return _result(arm, follower, stats, tolerance=tolerance, name=name)
 
 

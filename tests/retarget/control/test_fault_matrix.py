@@ -17,6 +17,7 @@ import sim
 from drivers import DynamixelBus
 from drivers.dynamixel_bus import plan_servos
 from retarget.control import ControlLoop, LoopConfig, TickRecord
+from retarget.control.summary import RunSummary
 from retarget.errors import BusError
 from tests.helpers import circle_targets, goal_writes, lossy_sdk_timeout
 
@@ -104,6 +105,11 @@ def test_a_servo_lost_most_of_the_time_stops_cleanly_at_the_window(arm):
     assert re.search(r"\d+% of \d+ replies lost", str(outcome))
     assert_within_limits(arm, records, simbus)
     assert records and sum(r.stale for r in records) > 0
+    # the failed run's summary goes with the error: the ticks that ran, the failure counted
+    summary = outcome.summary
+    assert isinstance(summary, RunSummary) and summary.ticks + summary.lead_in_ticks > 0 and summary.bus_errors >= 1
+    # every recorded stale read, plus the one of the read that faulted the bus (its tick has no record)
+    assert summary.stale_reads == sum(r.stale for r in records) + 1
 
 
 @pytest.mark.parametrize("seed", SEEDS)
