@@ -20,6 +20,11 @@ What the servos answer, as the e-Manual says:
   lost does not stop the later plain replies; in a fast read, it cuts the shared packet short (the later
   servos wait for it), which dynamixel-sdk sees as a corrupt packet.
 * A servo listens only at its own Baud Rate item when the line rate is known (``line_baud``).
+* Secondary (Shadow) ID (e-Manual, Secondary ID(12); :mod:`sim.rules`): a servo whose Secondary ID is N also
+  carries out WRITE and REG_WRITE (RAM area only) and ACTION sent to ID N, and its slot N of a SYNC/BULK WRITE
+  when there is none for its own ID, never answering; PING and reads for N are answered by servo N alone.
+* Every instruction packet a servo takes as its own (its ID, its Secondary ID, broadcast; good CRC) restarts its
+  Bus Watchdog interval, after the servo is brought up to the packet's time (:mod:`sim.watchdog`).
 * Bad CRC: the servo addressed by a unicast instruction answers CRC Error (3), as the Protocol 2.0 error
   table defines (set ``crc_error_reply=False`` to make servos ignore such packets instead); broadcast
   packets with a bad CRC are ignored.  Bytes before a header, and broken headers, are skipped.
@@ -39,7 +44,15 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
-from drivers.control_table import BROADCAST_ID, MAX_ID, RAD_PER_PULSE, FactoryReset, Instruction, StatusError
+from drivers.control_table import (
+    BROADCAST_ID,
+    EEPROM_END,
+    MAX_ID,
+    RAD_PER_PULSE,
+    FactoryReset,
+    Instruction,
+    StatusError,
+)
 from retarget.arm.load import load_arm
 from retarget.arm.model import Arm
 from retarget.control.clock import Clock, MonotonicClock
@@ -334,19 +347,27 @@ class SimBus:
     def _dispatch(self, pkt: Packet, t: float) -> list[tuple[_Sender, bytes]]:
         listeners = self._listeners(t)
         for s in listeners:
-            s.update(t)
+            s.update(t)  # first: a Bus Watchdog due before this packet trips on time
+            if pkt.crc_ok and s.hears(pkt.id):
+                s.instruction_received(t)
         if pkt.id == BROADCAST_ID:
             if not pkt.crc_ok:
                 return []
             return self._broadcast(pkt, sorted(listeners, key=lambda s: s.id), t)
+        if pkt.id > MAX_ID:
+            return []
         target = next((s for s in listeners if s.id == pkt.id), None)
-        if target is None or pkt.id > MAX_ID:
+        shadows = [s for s in listeners if s is not target and s.secondary_id == pkt.id]
+        if target is None:
+            if pkt.crc_ok:
+                _run_as_shadows(shadows, pkt)
             return []
         if not pkt.crc_ok:
             if self.crc_error_reply and target.status_return_level >= 2:
                 return [(target, build_status(target.id, target.error_byte(StatusError.CRC)))]
             return []
         error, data, reboot = self._unicast(target, pkt)  # may change the ID (WRITE 7, FACTORY_RESET)
+        _run_as_shadows(shadows, pkt)
         if error is None:
             return []
         inst = pkt.instruction
@@ -397,11 +418,11 @@ class SimBus:
                 if reboot:
                     s.reboot()
             return []
-        by_id = {s.id: s for s in servos}
         if inst == Instruction.SYNC_WRITE:
-            return self._sync_write(p, by_id)
+            return self._sync_write(p, servos)
         if inst == Instruction.BULK_WRITE:
-            return self._bulk_write(p, by_id)
+            return self._bulk_write(p, servos)
+        by_id = {s.id: s for s in servos}
         if inst in (Instruction.SYNC_READ, Instruction.FAST_SYNC_READ):
             if len(p) < 5:
                 return []
@@ -424,30 +445,27 @@ class SimBus:
             out.append((servo, build_status(servo.id, servo.error_byte(error), data)))
         return out
 
-    def _sync_write(self, p: bytes, by_id: dict[int, SimServo]) -> list[tuple[_Sender, bytes]]:
+    def _sync_write(self, p: bytes, servos: list[SimServo]) -> list[tuple[_Sender, bytes]]:
         if len(p) < 4:
             return []
         address, length = _u16(p, 0), _u16(p, 2)
         step = length + 1
         if length == 0 or (len(p) - 4) % step:
             return []
-        for k in range(4, len(p), step):
-            s = by_id.get(p[k])
-            if s is not None:
-                s.write(address, p[k + 1 : k + step])
+        _write_slots(servos, {p[k]: (address, p[k + 1 : k + step]) for k in range(4, len(p), step)})
         return []
 
-    def _bulk_write(self, p: bytes, by_id: dict[int, SimServo]) -> list[tuple[_Sender, bytes]]:
+    def _bulk_write(self, p: bytes, servos: list[SimServo]) -> list[tuple[_Sender, bytes]]:
+        slots: dict[int, tuple[int, bytes]] = {}
         k = 0
         while k + 5 <= len(p):
             dxl_id, address, length = p[k], _u16(p, k + 1), _u16(p, k + 3)
             data = p[k + 5 : k + 5 + length]
             if len(data) != length:
                 break
-            s = by_id.get(dxl_id)
-            if s is not None:
-                s.write(address, data)
+            slots.setdefault(dxl_id, (address, data))
             k += 5 + length
+        _write_slots(servos, slots)
         return []
 
     def _fast_read(
@@ -494,6 +512,27 @@ class _FastSender:
         self.id = BROADCAST_ID
         self.return_delay = servo.return_delay
         self.reply_faults = reply_faults
+
+
+def _write_slots(servos: list[SimServo], slots: dict[int, tuple[int, bytes]]) -> None:
+    """SYNC/BULK WRITE: each servo writes the slot for its ID, else (as a shadow, RAM only) its Secondary ID's."""
+    for s in servos:
+        if s.id in slots:
+            s.write(*slots[s.id])
+        elif s.secondary_id in slots:
+            address, data = slots[s.secondary_id]
+            if address >= EEPROM_END:  # the EEPROM area cannot be changed through a Secondary ID (sim.rules)
+                s.write(address, data)
+
+
+def _run_as_shadows(shadows: list[SimServo], pkt: Packet) -> None:
+    """Servos whose Secondary ID a unicast packet is for: WRITE/REG_WRITE (RAM only) and ACTION, silently."""
+    inst, p = pkt.instruction, pkt.params
+    for s in shadows:
+        if inst in (Instruction.WRITE, Instruction.REG_WRITE) and len(p) >= 3 and _u16(p, 0) >= EEPROM_END:
+            (s.write if inst == Instruction.WRITE else s.reg_write)(_u16(p, 0), p[2:])
+        elif inst == Instruction.ACTION:
+            s.action()
 
 
 def _u16(p: bytes, k: int) -> int:

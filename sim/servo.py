@@ -17,10 +17,13 @@ Rules it follows, from the e-Manual:
 * Position modes (3, 4, 5) move toward Goal Position with the velocity-based trapezoid of Profile
   Velocity/Acceleration (0 = unlimited), or the time-based profile (Drive Mode bit 2) where they are
   times in ms.  The speed is capped by Velocity Limit and by the model's no-load speed.  Velocity mode (1)
-  ramps Present Velocity to Goal Velocity under Profile Acceleration.  Current (0) and PWM (16) modes
-  hold still (no load physics).  With torque off nothing moves.
-* Present Current (Present Load on XL430) is a plausible load: a holding share of the stall current plus
-  terms proportional to acceleration and velocity.  Temperature and input voltage are readable.
+  ramps Present Velocity to Goal Velocity under Profile Acceleration.  PWM (16), current (0) and
+  current-based position (5) modes follow the no-load motor of :mod:`sim.physics`.  With torque off the
+  motor does nothing; a hand may turn the horn (:meth:`SimServo.move_by_hand`).
+* Present Current (Present Load on XL430) is the unloaded motor's: about zero at rest, growing with
+  acceleration and velocity (:mod:`sim.physics`).  Temperature and input voltage are readable.
+* Secondary ID, Protocol Type, the single-turn Homing Offset rule, Bus Watchdog and Indirect Data's inherited
+  rules: :mod:`sim.rules` and :mod:`sim.watchdog`.
 * A hardware error sets Hardware Error Status and the Alert bit (0x80) of every status packet.  If its bit
   is in the Shutdown mask, torque goes off and a write of Torque Enable = 1 is ignored until REBOOT.
 * REBOOT resets the RAM area and clears hardware errors; FACTORY_RESET resets the table (0xFF all,
@@ -35,12 +38,12 @@ import logging
 import math
 import struct
 from collections import deque
-from collections.abc import Callable
 
 from drivers.control_table import (
     ALERT_BIT,
     BAUD_CODES,
     BAUD_RATES,
+    BROADCAST_ID,
     EEPROM_END,
     PULSES_PER_REV,
     RETURN_DELAY_UNIT_S,
@@ -52,13 +55,17 @@ from drivers.control_table import (
     HardwareError,
     Model,
     OperatingMode,
-    Register,
     StatusError,
     common_register,
 )
 from drivers.control_table import model as lookup_model
 from retarget.control.clock import Clock, MonotonicClock
+from sim import rules
+from sim.hand import HandPath, rate, smoothstep_path
+from sim.physics import PWM_FULL_SCALE, Motor
 from sim.profile import Trajectory, ramp_profile, rest, time_profile, velocity_profile
+from sim.servo_writes import WriteRules
+from sim.watchdog import WATCHDOG_ERROR, BusWatchdog
 
 log = logging.getLogger(__name__)
 _I16, _U16, _I32 = struct.Struct("<h"), struct.Struct("<H"), struct.Struct("<i")
@@ -67,9 +74,6 @@ PULSES_PER_S_PER_VELOCITY_UNIT = RPM_PER_VELOCITY_UNIT / 60.0 * PULSES_PER_REV  
 PULSES_PER_S2_PER_ACCEL_UNIT = RPM2_PER_ACCEL_UNIT / 3600.0 * PULSES_PER_REV  #: ~244.1
 CLEAR_MULTI_TURN = bytes((0x01, 0x44, 0x58, 0x4C, 0x22))
 _POSITION_MODES = (OperatingMode.POSITION, OperatingMode.EXTENDED_POSITION, OperatingMode.CURRENT_BASED_POSITION)
-_HOLD_SHARE = 0.06  #: Present Current while holding still, as a share of the stall current ("gravity")
-_ACCEL_SHARE = 0.25  #: extra share at the reference acceleration (no-load speed reached in 0.1 s)
-_VELOCITY_SHARE = 0.10  #: extra share at the no-load speed
 
 # Addresses of the items the servo reads and writes in its own memory on every update: the same on every X model
 # (common_register checks that), as plain ints for the hot path.  "Present Current" is Present Load on XL430.
@@ -80,6 +84,8 @@ _BAUD_RATE = common_register("Baud Rate").address
 _RETURN_DELAY_TIME = common_register("Return Delay Time").address
 _DRIVE_MODE = common_register("Drive Mode").address
 _OPERATING_MODE = common_register("Operating Mode").address
+_SECONDARY_ID = common_register("Secondary(Shadow) ID").address
+_BUS_WATCHDOG = common_register("Bus Watchdog").address
 _HOMING_OFFSET = common_register("Homing Offset").address
 _MOVING_THRESHOLD = common_register("Moving Threshold").address
 _SHUTDOWN = common_register("Shutdown").address
@@ -99,10 +105,16 @@ _VELOCITY_TRAJECTORY = common_register("Velocity Trajectory").address
 _POSITION_TRAJECTORY = common_register("Position Trajectory").address
 _PRESENT_INPUT_VOLTAGE = common_register("Present Input Voltage").address
 _PRESENT_TEMPERATURE = common_register("Present Temperature").address
+#: the goal item a Bus Watchdog trip zeroes, by Operating Mode
+_MODE_GOAL: dict[int, str] = {
+    OperatingMode.VELOCITY: "Goal Velocity",
+    OperatingMode.PWM: "Goal PWM",
+    OperatingMode.CURRENT: "Goal Current",
+}
 _REVERSE_BIT = int(DriveMode.REVERSE)  #: Drive Mode bit 0, as an int (an IntFlag operation costs a microsecond)
 
 
-class SimServo:
+class SimServo(WriteRules):
     """A simulated servo of ``model`` with ID ``dxl_id``.
 
     ``position`` is the Present Position it starts at (pulses, with the default Drive Mode and Homing
@@ -131,6 +143,8 @@ class SimServo:
         self._mem = self.model.defaults()
         self._regs = self.model.registers
         self._no_load = self.model.no_load_rpm / 60.0 * PULSES_PER_REV  #: pulses/s
+        self._motor = Motor.of(self.model)
+        self._hand: HandPath | None = None  #: what a hand holds the horn at while torque is off
         self._fresh: float | None = None  #: clock time the Present items were last computed for
         self._set("ID", dxl_id)
         if baud is not None:
@@ -142,6 +156,8 @@ class SimServo:
         now = self.clock.now()
         self._t_origin = now
         self._t = now
+        self._watchdog = BusWatchdog(now)
+        self._init_goal_limits()
         self._trajectory: Trajectory = rest(float(position))  # physical (actual) pulses
         self._state = (float(position), 0.0, 0.0)  # actual p, v, a at self._t
         self._registered: tuple[int, bytes] | None = None
@@ -176,6 +192,22 @@ class SimServo:
     @property
     def status_return_level(self) -> int:
         return self._mem[_STATUS_RETURN_LEVEL]
+
+    @property
+    def secondary_id(self) -> int | None:
+        """The ID it also obeys as a silent shadow (Secondary(Shadow) ID item), or None when that is off."""
+        return rules.secondary_id(self._mem[_SECONDARY_ID])
+
+    def hears(self, dxl_id: int) -> bool:
+        """Whether an instruction packet for ``dxl_id`` is its own: its ID, its Secondary ID, or broadcast."""
+        return dxl_id in (self._mem[_ID], BROADCAST_ID) or dxl_id == self.secondary_id
+
+    def instruction_received(self, t: float) -> None:
+        """An instruction packet it takes as its own arrived at clock time ``t``: restarts the Bus Watchdog interval.
+
+        The bus calls this after bringing the servo up to ``t`` (so a watchdog due before ``t`` has tripped).
+        """
+        self._watchdog.packet(t)
 
     @property
     def torque(self) -> bool:
@@ -281,6 +313,59 @@ class SimServo:
         self._fresh = None
         self.update()
 
+    # ------------------------------------------------------------------ a hand on the horn
+
+    def move_by_hand(self, path: HandPath | None) -> None:
+        """A hand holds the horn from now on: ``path(t)`` is the Present Position (pulses) at clock time ``t`` (s).
+
+        While torque is off Present Position follows the path, Present Velocity reports its derivative (0.229 rpm
+        units) and Moving is 1 while that exceeds Moving Threshold, as when a limp joint is turned by hand.  With
+        torque on the motor holds its own position and the path is ignored; the hand keeps holding, so when torque
+        goes off again the horn follows the path from there.  ``None`` lets go: the horn stays where it was left.
+        The path is in the reporting frame of the moment it is read (Homing Offset and Drive Mode applied).
+
+        >>> from retarget.control.clock import VirtualClock
+        >>> clock = VirtualClock()
+        >>> servo = SimServo("XM430-W350", 1, clock=clock)
+        >>> servo.move_by_hand(lambda t: 2048 + 100 * t)   # 100 pulses/s, from 2048 at t = 0
+        >>> clock.advance(2.0)
+        >>> servo.get("Present Position"), servo.get("Present Velocity"), servo.get("Moving")
+        (2248, 6, 0)
+        >>> servo.move_by_hand(None)                       # let go
+        >>> clock.advance(1.0)
+        >>> servo.get("Present Position"), servo.get("Present Velocity")
+        (2248, 0)
+        """
+        self._fresh = None
+        self.update()
+        self._hand = path
+        self._fresh = None
+        self.update()
+
+    def turn_by_hand(self, to: float, *, duration: float, now: float | None = None) -> float:
+        """Turn the horn by hand from where it is to Present Position ``to`` (pulses) over ``duration`` s.
+
+        A :func:`sim.hand.smoothstep_path` starting at clock time ``now`` (default the clock's now) from the present
+        position; the hand then keeps holding it at ``to``.  Returns the clock time the turn ends.  Same rules as
+        :meth:`move_by_hand` (no effect while torque is on).
+
+        >>> from retarget.control.clock import VirtualClock
+        >>> clock = VirtualClock()
+        >>> servo = SimServo("XL430-W250", 1, clock=clock)
+        >>> end = servo.turn_by_hand(3072, duration=1.0)
+        >>> clock.advance(0.5)
+        >>> servo.get("Present Position"), servo.get("Moving")   # half-way, at 1.5 x 1024 pulses/s
+        (2560, 1)
+        >>> clock.sleep_until(end)
+        >>> servo.get("Present Position"), servo.get("Present Velocity"), servo.get("Moving")
+        (3072, 0, 0)
+        """
+        t0 = self.clock.now() if now is None else float(now)
+        self.update()
+        start = self._present_from_actual(self._state[0])
+        self.move_by_hand(smoothstep_path(t0=t0, start=start, end=float(to), duration=float(duration)))
+        return t0 + float(duration)
+
     @property
     def memory(self) -> bytes:
         """A copy of the whole control table, up to date."""
@@ -293,11 +378,15 @@ class SimServo:
     def _reverse(self) -> bool:
         return bool(self._mem[_DRIVE_MODE] & DriveMode.REVERSE)
 
+    def _homing(self) -> int:
+        """The Homing Offset in effect (an invalid one is ignored in position mode: :mod:`sim.rules`)."""
+        return rules.effective_homing_offset(_I32.unpack_from(self._mem, _HOMING_OFFSET)[0], self._mode())
+
     def _present_from_actual(self, actual: float) -> float:
-        return (PULSES_PER_REV - actual if self._reverse else actual) + self._get("Homing Offset")
+        return (PULSES_PER_REV - actual if self._reverse else actual) + self._homing()
 
     def _actual_from_present(self, present: float) -> float:
-        p = present - self._get("Homing Offset")
+        p = present - self._homing()
         return PULSES_PER_REV - p if self._reverse else p
 
     # ------------------------------------------------------------------ motion
@@ -323,7 +412,36 @@ class SimServo:
             if pv > 0:
                 vmax = min(vmax, pv * PULSES_PER_S_PER_VELOCITY_UNIT)
             accel = pa * PULSES_PER_S2_PER_ACCEL_UNIT if pa > 0 else math.inf
+            if self._mode() == OperatingMode.CURRENT_BASED_POSITION:
+                cap = self._motor.accel_cap(self._get("Goal Current"), self._get("Current Limit"))
+                if cap <= 0:  # no current allowed: no torque to move with
+                    self._trajectory = rest(p)
+                    return
+                accel = min(accel, cap)
             self._trajectory = velocity_profile(now, p, v, goal, vmax, accel)
+
+    def _plan_pwm(self) -> None:
+        """PWM mode: toward the no-load speed of the duty Goal PWM asks (within PWM Limit)."""
+        p, v, _ = self._state
+        limit = self._get("PWM Limit")
+        target = self._motor.pwm_velocity(max(-limit, min(limit, self._get("Goal PWM"))))
+        self._trajectory = ramp_profile(self._t, p, v, -target if self._reverse else target, self._motor.stall_accel)
+
+    def _plan_current(self) -> None:
+        """Current mode: Goal Current accelerates the unloaded rotor toward the no-load speed."""
+        p, v, _ = self._state
+        target, accel = self._motor.current_mode_target(self._get("Goal Current"))
+        self._trajectory = ramp_profile(self._t, p, v, -target if self._reverse else target, accel)
+
+    def _plan_mode(self) -> None:
+        """Plan the motion the present Operating Mode and goals ask for (torque on)."""
+        mode = self._mode()
+        if mode == OperatingMode.VELOCITY:
+            self._plan_velocity()
+        elif mode == OperatingMode.PWM:
+            self._plan_pwm()
+        elif mode == OperatingMode.CURRENT:
+            self._plan_current()
 
     def _plan_velocity(self) -> None:
         p, v, _ = self._state
@@ -343,32 +461,65 @@ class SimServo:
         self._set("Goal Position", max(-1_048_575, min(1_048_575, present)))
         self._trajectory = rest(self._state[0])
         self._state = (self._state[0], 0.0, 0.0)
-        if self._mode() == OperatingMode.VELOCITY:
-            self._plan_velocity()
+        self._plan_mode()
 
     def _torque_off(self) -> None:
         self._fresh = None
         self._mem[_TORQUE_ENABLE] = 0
         self._trajectory = rest(self._state[0])
         self._state = (self._state[0], 0.0, 0.0)
+        if self._hand is not None:  # limp in a hand: the horn goes where the hand holds it
+            self._state = self._hand_state(self._hand, self._t)
 
     def update(self, now: float | None = None) -> None:
-        """Bring motion, faults and every Present item up to ``now`` (default ``clock.now()``)."""
+        """Bring motion, faults, the Bus Watchdog and every Present item up to ``now`` (default ``clock.now()``)."""
         now = max(self.clock.now() if now is None else float(now), self._t)
-        while self._scheduled_errors and self._scheduled_errors[0][0] <= now:
-            at, bits = self._scheduled_errors.pop(0)
-            self._advance(at)
-            self._raise_hardware_error(bits)
+        while True:
+            due_error = self._scheduled_errors[0][0] if self._scheduled_errors else math.inf
+            due_watchdog = self._watchdog.deadline(
+                setting=self._mem[_BUS_WATCHDOG], torque=bool(self._mem[_TORQUE_ENABLE])
+            )
+            if min(due_error, due_watchdog) > now:
+                break
+            if due_error <= due_watchdog:
+                at, bits = self._scheduled_errors.pop(0)
+                self._advance(at)
+                self._raise_hardware_error(bits)
+            else:
+                self._advance(due_watchdog)
+                self._watchdog_trip()
         if now == self._fresh:
             return  # nothing moved or changed since the last refresh
         self._advance(now)
         self._refresh_present(now)
 
+    def _watchdog_trip(self) -> None:
+        """Bus Watchdog timed out: stop at once where it is and hold; the item reads -1 (:mod:`sim.watchdog`)."""
+        self._fresh = None
+        p = self._state[0]
+        self._trajectory = rest(p)
+        self._state = (p, 0.0, 0.0)
+        self._mem[_BUS_WATCHDOG] = WATCHDOG_ERROR
+        self._set("Goal Position", max(-1_048_575, min(1_048_575, round(self._present_from_actual(p)))))
+        goal = _MODE_GOAL.get(self._mode())
+        if goal is not None:
+            self._set(goal, 0)
+        log.info("servo %d: bus watchdog tripped at t=%.3f s", self.id, self._t)
+
+    def _hand_state(self, hand: HandPath, t: float) -> tuple[float, float, float]:
+        """(actual p, v, a) of a horn the hand holds on ``hand`` at time ``t``."""
+        v = rate(hand, t)
+        return self._actual_from_present(hand(t)), -v if self._reverse else v, 0.0
+
     def _advance(self, now: float) -> None:
         if now < self._t:
             return
-        if self._mem[_TORQUE_ENABLE] and self._mode() in (*_POSITION_MODES, OperatingMode.VELOCITY):
+        if self._mem[_TORQUE_ENABLE]:
             self._state = self._trajectory.state(now)
+        elif self._hand is not None:
+            self._state = self._hand_state(self._hand, now)
+        elif self._state[1]:
+            self._state = (self._state[0], 0.0, 0.0)  # let go: it stays where it was left
         self._t = now
 
     def _refresh_present(self, now: float) -> None:
@@ -376,8 +527,7 @@ class SimServo:
         p, v, a = self._state
         torque = mem[_TORQUE_ENABLE]
         sign = -1.0 if mem[_DRIVE_MODE] & _REVERSE_BIT else 1.0
-        homing = _I32.unpack_from(mem, _HOMING_OFFSET)[0]
-        present = (PULSES_PER_REV - p if sign < 0 else p) + homing
+        present = (PULSES_PER_REV - p if sign < 0 else p) + self._homing()
         moving_profile = bool(torque) and not self._trajectory.done(now)
         velocity_units = round(sign * v / PULSES_PER_S_PER_VELOCITY_UNIT)
         position = max(-(2**31), min(2**31 - 1, round(present)))
@@ -395,58 +545,27 @@ class SimServo:
             | ((self._trajectory.shape & 3) << 4 if moving_profile else 0)
         )
         _U16.pack_into(mem, _REALTIME_TICK, int((now - self._t_origin) * 1000.0) % 32768)
-        load = self._load_share(v, a) * sign if torque else 0.0
+        load = self._motor.load_share(v, a) * sign if torque else 0.0
         if self.model.current_unit_ma is None:
             _I16.pack_into(mem, _PRESENT_CURRENT, round(max(-1.0, min(1.0, load)) * 1000))
         else:
             ma = load * self.model.stall_current * 1000.0
             _I16.pack_into(mem, _PRESENT_CURRENT, max(-32768, min(32767, round(ma / self.model.current_unit_ma))))
-        _I16.pack_into(mem, _PRESENT_PWM, round(sign * v / self._no_load * 885) if torque else 0)
+        _I16.pack_into(mem, _PRESENT_PWM, self._present_pwm(sign * v) if torque else 0)
         _U16.pack_into(mem, _PRESENT_INPUT_VOLTAGE, max(0, min(65535, round(self.input_voltage / VOLT_PER_UNIT))))
         mem[_PRESENT_TEMPERATURE] = max(0, min(255, round(self.ambient_temperature + 4.0 * abs(load))))
         if self._indirect_used:
-            self._refresh_indirect()
+            for data_addr, target in rules.indirect_targets(self.model, mem).items():
+                if 0 <= target < len(mem):
+                    mem[data_addr] = mem[target]
         self._fresh = now
 
-    def _load_share(self, v: float, a: float) -> float:
-        no_load = self._no_load
-        a_ref = no_load / 0.1
-        direction = math.copysign(1.0, a) if a else math.copysign(1.0, v) if v else 1.0
-        share = _HOLD_SHARE * direction + _ACCEL_SHARE * a / a_ref + _VELOCITY_SHARE * v / no_load
-        return max(-1.0, min(1.0, share))
-
-    # ------------------------------------------------------------------ indirect addressing
-
-    def _indirect_pairs(self) -> list[tuple[int, int]]:
-        """(data address, target address) of every Indirect Data item."""
-        pairs = []
-        for reg in self._regs.values():
-            if reg.name.startswith("Indirect Address "):
-                n = reg.name.rsplit(" ", 1)[1]
-                data = self._regs[f"Indirect Data {n}"]
-                pairs.append((data.address, reg.decode(self._mem[reg.address : reg.end])))
-        return pairs
-
-    def _forward_indirect(self, writes: list[tuple[int, int]]) -> None:
-        """Write bytes stored in Indirect Data items through to their targets, in runs of consecutive targets."""
-        targets = dict(self._indirect_pairs())
-        runs: list[tuple[int, bytearray]] = []
-        for data_addr, byte in writes:
-            target = targets.get(data_addr)
-            if target is None:
-                continue
-            if runs and runs[-1][0] + len(runs[-1][1]) == target:
-                runs[-1][1].append(byte)
-            else:
-                runs.append((target, bytearray((byte,))))
-        for target, run in runs:
-            if self.check_write(target, bytes(run)) == StatusError.NONE:
-                self.write(target, bytes(run))
-
-    def _refresh_indirect(self) -> None:
-        for data_addr, target in self._indirect_pairs():
-            if 0 <= target < len(self._mem):
-                self._mem[data_addr] = self._mem[target]
+    def _present_pwm(self, v: float) -> int:
+        """Present PWM: Goal PWM in PWM mode, else the duty the unloaded motor needs at velocity ``v`` (reported)."""
+        if self._mode() == OperatingMode.PWM:
+            limit = self._get("PWM Limit")
+            return max(-limit, min(limit, self._get("Goal PWM")))
+        return round(v / self._no_load * PWM_FULL_SCALE)
 
     # ------------------------------------------------------------------ instructions
 
@@ -508,6 +627,7 @@ class SimServo:
         self.input_voltage = self.model.nominal_voltage
         self._torque_off()
         self._set("Goal Position", max(-1_048_575, min(1_048_575, round(self._present_from_actual(self._state[0])))))
+        self._init_goal_limits()
         self._indirect_used = False
         self._silent_until = self._t + self.boot_time
         self.update()
@@ -528,6 +648,7 @@ class SimServo:
         self._registered = None
         self._torque_off()
         self._set("Goal Position", round(self._present_from_actual(self._state[0])))
+        self._init_goal_limits()
         self._indirect_used = False
         self.update()
         return StatusError.NONE
@@ -547,83 +668,12 @@ class SimServo:
         self.update()
         return StatusError.NONE
 
-    # ------------------------------------------------------------------ write validation and effects
+    def _init_goal_limits(self) -> None:
+        """Power-on RAM: Goal PWM = PWM Limit and Goal Current = Current Limit.
 
-    def _validate(self, address: int, data: bytes) -> tuple[int, list[Register]]:
-        if not data:
-            return StatusError.DATA_LENGTH, []
-        end = address + len(data)
-        if address < 0 or end > len(self._mem):
-            return StatusError.ACCESS, []
-        regs = self.model.covering(address, len(data))
-        if not regs:
-            return StatusError.ACCESS, []
-        for reg in regs:
-            if reg.address < address or reg.end > end:
-                return StatusError.DATA_LENGTH, []
-        for reg in regs:
-            if not reg.writable:
-                return StatusError.ACCESS, []
-            if reg.eeprom and self._mem[_TORQUE_ENABLE]:
-                return StatusError.ACCESS, []
-        new = {r.name: r.decode(data[r.address - address : r.end - address]) for r in regs}
-
-        def value(name: str) -> int:
-            return new[name] if name in new else self._get(name)
-
-        mode = value("Operating Mode")
-        for reg in regs:
-            v = new[reg.name]
-            if not reg.in_range(v):
-                return StatusError.DATA_RANGE, []
-            if reg.name == "Operating Mode" and v not in self.model.operating_modes:
-                return StatusError.DATA_RANGE, []
-            if reg.limit is not None and not (reg.name == "Goal Position" and mode != OperatingMode.POSITION):
-                lo_name, hi_name = reg.limit
-                lo = -value(lo_name[1:]) if lo_name.startswith("-") else value(lo_name)
-                hi = value(hi_name)
-                if not lo <= v <= hi:
-                    return StatusError.DATA_LIMIT, []
-        return StatusError.NONE, regs
-
-    def _apply(self, address: int, data: bytes, regs: list[Register]) -> None:
-        self._fresh = None
-        self.writes.append((self._t, address, data))
-        indirect_writes: list[tuple[int, int]] = []
-        effects: list[Callable[[], None]] = []
-        for reg in regs:
-            raw = data[reg.address - address : reg.end - address]
-            old = self._mem[reg.address : reg.end]
-            self._mem[reg.address : reg.end] = raw
-            name = reg.name
-            if name == "Torque Enable":
-                if raw[0] and not old[0]:
-                    if self._mem[_HARDWARE_ERROR_STATUS] & self._mem[_SHUTDOWN]:
-                        self._mem[_TORQUE_ENABLE] = 0  # shut down: only REBOOT brings torque back
-                    else:
-                        effects.append(self._torque_on)
-                elif not raw[0] and old[0]:
-                    effects.append(self._torque_off)
-            elif name == "Goal Position":
-                if (
-                    not self._mem[_TORQUE_ENABLE]
-                    and self._mem[_DRIVE_MODE] & DriveMode.TORQUE_ON_BY_GOAL
-                    and not self._mem[_HARDWARE_ERROR_STATUS] & self._mem[_SHUTDOWN]
-                ):
-                    self._mem[_TORQUE_ENABLE] = 1
-                if self._mem[_TORQUE_ENABLE] and self._mode() in _POSITION_MODES:
-                    effects.append(self._plan_goal)
-            elif name == "Goal Velocity":
-                if self._mem[_TORQUE_ENABLE] and self._mode() == OperatingMode.VELOCITY:
-                    effects.append(self._plan_velocity)
-            elif name == "Operating Mode" and raw != old:
-                effects.append(lambda: setattr(self, "_trajectory", rest(self._state[0])))
-            elif name.startswith("Indirect Address"):
-                self._indirect_used = True
-            elif name.startswith("Indirect Data"):
-                indirect_writes.append((reg.address, raw[0]))
-        for effect in effects:
-            effect()
-        if indirect_writes and self._indirect_used:
-            self._forward_indirect(indirect_writes)
-        self._refresh_present(self._t)
+        What DYNAMIXEL Wizard shows on a fresh X-series servo, and what LeRobot's Koch gripper relies on (it sets
+        current-based position mode and Current Limit, never Goal Current); not stated in the e-Manual (unverified).
+        """
+        self._set("Goal PWM", self._get("PWM Limit"))
+        if "Current Limit" in self._regs:
+            self._set("Goal Current", self._get("Current Limit"))

@@ -142,6 +142,8 @@ def test_byte_stuffing_of_a_value_containing_ff_ff_fd(rig):
     # Present Position = actual (2048) + Homing Offset; aim for bytes FF FF FD FF (-131073)
     wanted = -131073
     assert le32(wanted) == [0xFF, 0xFF, 0xFD, 0xFF]
+    # extended position mode: position mode ignores a Homing Offset beyond +-1024 (e-Manual, Homing Offset(20))
+    assert ph.write1ByteTxRx(port, 2, address("Operating Mode"), 4) == (COMM_SUCCESS, 0)
     assert ph.write4ByteTxRx(port, 2, address("Homing Offset"), (wanted - 2048) & 0xFFFFFFFF) == (COMM_SUCCESS, 0)
     value, result, error = ph.read4ByteTxRx(port, 2, PRESENT)
     assert (signed32(value), result, error) == (wanted, COMM_SUCCESS, 0)
