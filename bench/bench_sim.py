@@ -6,6 +6,10 @@
    (the plain ``dynamixel_sdk.PortHandler``).  Real clock.
 2. The wire-time model at 1 Mbps: the same tick on a VirtualClock bus with ``wire=1`` spends exactly the
    computed wire time (10 bits/byte, both directions, plus the Return Delay Time of each reply).
+3. ``retarget sim``'s pty as a client sees it (informational): a PING round trip at 57600 baud through the plain
+   ``PortHandler`` with the wire model (the CLI default) and without (``--no-wire``), against the computed wire
+   time; and how many packets a client loses that writes then ``tcflush(TCOFLUSH)``es after a delay (pypot's
+   pattern; a kernel race on ptys, see ``sim.server``), from a separate process.
 
 Run: ``python bench/bench_sim.py [--ticks N]``.  Prints median and p95 per tick against TARGET_*.
 """
@@ -130,6 +134,59 @@ def wire_real(ticks: int) -> list[float]:
         sim.unregister("wire-real")
 
 
+def pty_ping(wire: bool, pings: int) -> list[float]:
+    """Real seconds per PING round trip at 57600 baud over a pty (plain PortHandler), RDT 250 (the factory value)."""
+    bus = sim.SimBus.from_ids([1], "XL430-W250", clock=MonotonicClock(), baud=57600, faults=Faults(wire=wire))
+    with PtyServer(bus) as server:
+        port, ph = PortHandler(server.path), PacketHandler(2.0)
+        port.setBaudRate(57600)
+        try:
+            samples = []
+            for _ in range(pings):
+                t0 = time.perf_counter()
+                if ph.ping(port, 1)[1] != COMM_SUCCESS:
+                    raise RuntimeError("ping failed")
+                samples.append(time.perf_counter() - t0)
+            return samples
+        finally:
+            port.closePort()
+
+
+_FLUSH_CLIENT = """
+import os, sys, termios, time, tty, select
+fd = os.open(sys.argv[1], os.O_RDWR | os.O_NOCTTY)
+tty.setraw(fd)
+attrs = termios.tcgetattr(fd)
+attrs[4] = attrs[5] = termios.B1000000
+termios.tcsetattr(fd, termios.TCSANOW, attrs)
+ping, gap, got = bytes.fromhex("fffffd0001030001194e"), float(sys.argv[3]), 0
+for _ in range(int(sys.argv[2])):
+    os.write(fd, ping)
+    end = time.perf_counter() + gap
+    while time.perf_counter() < end:
+        pass
+    termios.tcflush(fd, termios.TCOFLUSH)
+    data, deadline = b"", time.monotonic() + 0.05
+    while len(data) < 14 and time.monotonic() < deadline:
+        if select.select([fd], [], [], 0.01)[0]:
+            data += os.read(fd, 64)
+    got += len(data) >= 14
+print(got)
+"""
+
+
+def flush_loss(gap: float, packets: int) -> float:
+    """Share of PINGs lost by a client (another process) that flushes its output ``gap`` s after each write."""
+    import subprocess
+    import sys
+
+    bus = sim.SimBus.from_ids([1], "XL430-W250", clock=MonotonicClock(), return_delay_time=0)
+    with PtyServer(bus) as server:
+        out = subprocess.run([sys.executable, "-c", _FLUSH_CLIENT, server.path, str(packets), str(gap)],
+                             capture_output=True, text=True, check=True).stdout  # fmt: skip
+    return 1.0 - int(out) / packets
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--ticks", type=int, default=500, help="timed ticks per case (default 500)")
@@ -164,6 +221,16 @@ def main() -> int:
         f"  real clock, RDT 250 sync read median {median * 1e3:6.3f} ms  p95 {p95 * 1e3:6.3f} ms  "
         f"(computed wire time {computed * 1e3:.3f} ms + Python overhead; informational)"
     )
+    print("retarget sim's pty at 57600 baud (informational): PING round trip, plain PortHandler, RDT 250")
+    computed = wire_time(10 + 14, 57600) + 250 * 2e-6
+    for wire in (True, False):
+        median, p95 = _stats(pty_ping(wire, max(20, args.ticks // 10)))
+        label = "wire model (default)" if wire else "--no-wire"
+        times = f"median {median * 1e3:6.3f} ms  p95 {p95 * 1e3:6.3f} ms"
+        print(f"  {label:<28} {times}  (wire time {computed * 1e3:.3f} ms)")
+    print("write then tcflush(TCOFLUSH) from another process (informational; a pty kernel race, see sim.server)")
+    for gap in (0.0, 20e-6, 100e-6, 500e-6):
+        print(f"  flush {gap * 1e6:5.0f} us after the write: {100 * flush_loss(gap, 200):5.1f} % of 200 PINGs lost")
     return 0 if ok else 1
 
 

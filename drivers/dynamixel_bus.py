@@ -64,6 +64,7 @@ from drivers.control_table import MODEL_BY_NUMBER, VOLT_PER_UNIT, common_registe
 from drivers.latency import check_latency_timer
 from drivers.port import open_port
 from drivers.servo_plan import MAX_PROFILE_MS, Profile, ServoPlan, ServoSettings, plan_servos
+from drivers.watchdog import HostWatchdog
 from retarget.arm.load import load_arm
 from retarget.arm.model import Arm
 from retarget.control.bus import BusStatus, ShutdownMode, close_after_failure
@@ -152,6 +153,9 @@ class DynamixelBus:
         rest_tolerance: rad; the rest pose counts as reached when every joint is this close.
         shadow_tolerance: rad; torque stays off when a shadow servo reads further than this from its primary.
         recover: on a hardware error, reboot the servo and configure it again instead of raising.
+        watchdog: seconds (0.02..2.54, rounded up to 20 ms; at least 3 ticks of ``dt``): arm every servo's Bus
+            Watchdog with the first goal, so the arm stops within that time when the host stops talking (a killed
+            process, a pulled cable) instead of finishing its last move; see :mod:`drivers.watchdog`.  None: off.
         watch_period: seconds between the watch reads of the servos outside the position read (the gripper):
             a PING of each (presence, and the Alert bit of a hardware error) before every
             ``max(1, round(watch_period / dt))``-th position read (``dt`` 0.01 s when unset), and before every
@@ -193,6 +197,7 @@ class DynamixelBus:
         rest_tolerance: float = 0.02,
         shadow_tolerance: float = 0.1,
         recover: bool = False,
+        watchdog: float | None = None,
         watch_period: float | None = None,
         fast_read: bool | None = None,
         check_latency: bool = True,
@@ -247,6 +252,7 @@ class DynamixelBus:
         self.clock: Clock = clock if clock is not None else MonotonicClock()
 
         self.servos = plan_servos(arm)
+        self._watchdog = None if watchdog is None else HostWatchdog(watchdog, [s.id for s in self.servos], dt=dt)
         self._joint_servos = tuple(s for s in self.servos if s.role != "gripper")
         self._gripper = next((s for s in self.servos if s.role == "gripper"), None)
         self._primary_index = np.array(
@@ -383,6 +389,8 @@ class DynamixelBus:
             self._pending = None
         link.release()  # a Ctrl-C inside the SDK leaves the port marked busy
         try:
+            if self._watchdog is not None:
+                self._watchdog.disarm(link)  # the shutdown sequence may pause; a tripped servo takes goals again
             if self._torque and self.shutdown_mode is ShutdownMode.REST:
                 try:
                     self._move_to_rest()
@@ -490,6 +498,8 @@ class DynamixelBus:
                 p + (m if v - p > m else -m if v - p < -m else v - p)
                 for v, p, m in zip(goal, last, self._max_step, strict=True)
             ]
+        if self._watchdog is not None:
+            self._watchdog_tick(link)
         self._send_goals(link, goal)
         self._last_goal = goal
 
@@ -555,6 +565,19 @@ class DynamixelBus:
         self._raise_alerts()
 
     # ------------------------------------------------------------------ internals
+
+    def _watchdog_tick(self, link: Link) -> None:
+        """Arm the Bus Watchdog with the first goal; later, a BusError if a host silence let it stop the servos."""
+        watchdog, now = self._watchdog, self.clock.now()
+        assert watchdog is not None
+        if not watchdog.armed:
+            watchdog.arm(link, now)
+        try:
+            watchdog.check(link, now)
+        except BusError as exc:
+            self._faulted = str(exc)
+            raise
+        watchdog.talked(now)
 
     def _require_active(self) -> Link:
         link = self.link
@@ -855,6 +878,8 @@ class DynamixelBus:
             self.clock.sleep_until(self.clock.now() + 0.05)
         self._configure(s)
         self._hold_here(s)  # the rebooted servo holds where it is
+        if self._watchdog is not None:
+            self._watchdog.rearm(link, s.id)  # REBOOT reset it with the RAM
         self._hardware_errors.pop(s.id, None)
         log.warning("servo %d rebooted and configured again", s.id)
 

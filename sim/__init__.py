@@ -13,7 +13,10 @@ Importing ``sim`` registers the ``sim://`` URL scheme with pyserial (``serial.pr
     >>> unregister(url)
 
 Modules: ``protocol`` (packet codec), ``servo`` (one servo), ``bus`` (the wire), ``faults`` (fault
-injection), ``transport`` (the pyserial port), ``server`` (pty / TCP server), ``profile`` (motion profiles).
+injection), ``transport`` (the pyserial port), ``server`` (pty / TCP server), ``profile`` (motion profiles),
+``rules``/``servo_writes``/``watchdog``/``physics`` (the e-Manual's register rules, Bus Watchdog and no-load
+motion), ``hand``/``hand_commands`` (joints turned by hand while limp, and their CLI gestures), ``control``
+(``retarget sim``'s control socket).
 ``Reply`` is the first release's name of :class:`ScheduledReply`.
 """
 

@@ -12,20 +12,38 @@ delay faults); a bus on a :class:`~retarget.clock.VirtualClock` jumps its clock 
 
 Lifecycle: ``with PtyServer(bus) as server: print(server.path)`` runs the loop in a thread until the block
 exits; or call :meth:`SimServer.serve_forever` in the foreground with a ``threading.Event`` to stop it.
+
+Hooks (:class:`ServerHook`, :meth:`SimServer.add_hook`) run in the serving thread, between packets: the scripted
+hands of ``retarget sim --hand`` (:class:`sim.hand_commands.HandSchedule`) and its control socket
+(:class:`sim.control.ControlServer`).  They may touch the servos without a lock, as the bus does.
+
+The pty: a client that flushes its output right after a write (``tcflush(fd, TCOFLUSH)``, as pypot does before
+each packet) can lose that write.  Linux moves the bytes a pty slave wrote to the master's input in a kernel
+worker; TCOFLUSH on the slave discards what that worker has not moved yet, before any reader can see it (a real
+USB adapter has sent them already).  Reading the master promptly does not prevent it; the server reads the
+master whenever it is readable, sleeping only in ``select``.  Measured on a 2-core VM (``bench/bench_sim.py``):
+0..47 % of the packets lost, varying with the load and with how soon the flush follows the write (20 us: 20-40 %,
+500 us: under 5 %); a busy-polling reader lowered it only 2-4 times.  Clients that flush after writes should use
+``--tcp`` (pyserial's ``socket://`` port has no output buffer to flush).  The master runs in packet mode (TIOCPKT)
+so the server sees each flush: :attr:`PtyServer.output_flushes`, and a warning the first time.
 """
 
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import logging
+import math
 import os
 import select
 import socket
+import struct
 import termios
 import threading
 import tty
 from collections import deque
-from typing import Self
+from collections.abc import Sequence
+from typing import Protocol, Self
 
 from retarget.control.clock import Clock, VirtualClock
 from sim.bus import ScheduledReply, SimBus
@@ -43,6 +61,22 @@ _TERMIOS_BAUD = {
 }  # fmt: skip
 
 
+class ServerHook(Protocol):
+    """Work the serving loop does between packets, in its own thread (see the module docstring)."""
+
+    def fds(self) -> Sequence[int]:
+        """File descriptors to wait on with the port (sockets); empty for none."""
+        ...
+
+    def due(self) -> float:
+        """Bus clock time of the next timed action; ``math.inf`` for none."""
+        ...
+
+    def service(self, ready: Sequence[int], now: float) -> None:
+        """Handle the ``ready`` fds among :meth:`fds` and whatever is due at bus clock time ``now``."""
+        ...
+
+
 class SimServer:
     """The serving loop shared by the pty and TCP servers."""
 
@@ -52,6 +86,11 @@ class SimServer:
         self._thread: threading.Thread | None = None
         self._pending: deque[ScheduledReply] = deque()
         self._wake_r, self._wake_w = os.pipe()  #: close() writes here to end a select at once
+        self.hooks: list[ServerHook] = []
+
+    def add_hook(self, hook: ServerHook) -> None:
+        """Run ``hook`` in the serving loop (before :meth:`start`, or from the serving thread)."""
+        self.hooks.append(hook)
 
     # subclasses: open resources in __init__/start, give the fd to poll, read, write, close
     def _fd(self) -> int | None:
@@ -99,21 +138,30 @@ class SimServer:
         virtual = isinstance(clock, VirtualClock)
         while not stop.is_set() and not self._stop.is_set():
             fd = self._fd()
-            if fd is None:
-                continue
-            timeout = _POLL
-            if self._pending:
-                timeout = 0.0 if virtual else min(_POLL, max(0.0, self._pending[0].due - clock.now()))
+            timeout = self._timeout(clock, virtual)
+            waiting = [self._wake_r, *(f for hook in self.hooks for f in hook.fds())]
             try:
-                readable, _, _ = select.select([fd, self._wake_r], [], [], timeout)
+                readable, _, _ = select.select([fd, *waiting] if fd is not None else waiting, [], [], timeout)
             except (OSError, ValueError):  # closed under us
                 break
             try:
-                self._serve_once(fd in readable, clock, virtual)
+                if fd is not None:
+                    self._serve_once(fd in readable, clock, virtual)
+                for hook in self.hooks:
+                    hook.service(readable, clock.now())
             except OSError:
                 if self._stop.is_set():  # close() released the pty or socket while this tick was under way
                     break
                 raise
+
+    def _timeout(self, clock: Clock, virtual: bool) -> float:
+        """How long the next select may wait: until the next reply or hook action is due, at most _POLL."""
+        if virtual:
+            return 0.0 if self._pending else _POLL
+        due = min((hook.due() for hook in self.hooks), default=math.inf)
+        if self._pending:
+            due = min(due, self._pending[0].due)
+        return min(_POLL, max(0.0, due - clock.now()))
 
     def _serve_once(self, readable: bool, clock: Clock, virtual: bool) -> None:
         """Feed what arrived to the bus, then send the replies that are due."""
@@ -133,7 +181,11 @@ class SimServer:
 
 
 class PtyServer(SimServer):
-    """A bus on a pseudo-terminal; :attr:`path` is the device to open."""
+    """A bus on a pseudo-terminal; :attr:`path` is the device to open.
+
+    :attr:`output_flushes` counts the client's TCOFLUSHes (the master runs in packet mode, TIOCPKT, to see them);
+    the first one logs a warning that writes may have been lost (module docstring).
+    """
 
     def __init__(self, bus: SimBus):
         super().__init__(bus)
@@ -142,15 +194,34 @@ class PtyServer(SimServer):
         tty.setraw(self._master)
         self.path = os.ttyname(self._slave)
         os.set_blocking(self._master, False)
+        self._packet_mode = _packet_mode(self._master)
+        self.output_flushes = 0  #: TCOFLUSHes the client did on the slave (packet mode only)
 
     def _fd(self) -> int | None:
         return self._master
 
     def _recv(self) -> bytes | None:
         try:
-            return os.read(self._master, 4096)
+            data = os.read(self._master, 4097)
         except (BlockingIOError, InterruptedError):
             return b""
+        if not self._packet_mode or not data:
+            return data
+        if data[0] == termios.TIOCPKT_DATA:
+            return data[1:]
+        if data[0] & termios.TIOCPKT_FLUSHWRITE:
+            self._note_flush()
+        return b""
+
+    def _note_flush(self) -> None:
+        self.output_flushes += 1
+        if self.output_flushes == 1:
+            log.warning(
+                "the client flushed its output (tcflush TCOFLUSH) on %s: on a pty Linux drops written bytes it has "
+                "not yet passed on, so an instruction written just before may be lost (a real adapter has sent it); "
+                "serve such clients on TCP (retarget sim --tcp)",
+                self.path,
+            )
 
     def _send(self, data: bytes) -> None:
         view = memoryview(data)
@@ -176,6 +247,18 @@ class PtyServer(SimServer):
         self._master = self._slave = -1
 
 
+def _packet_mode(master: int) -> bool:
+    """Put a pty master in packet mode (TIOCPKT): reads then say when the slave flushed.  False where unsupported."""
+    request = getattr(termios, "TIOCPKT", None)
+    if request is None:
+        return False
+    try:
+        fcntl.ioctl(master, request, struct.pack("i", 1))
+    except OSError:
+        return False
+    return True
+
+
 class TcpServer(SimServer):
     """A bus on a TCP socket; :attr:`address` is the ``(host, port)`` it listens on (port 0 picks one)."""
 
@@ -191,20 +274,16 @@ class TcpServer(SimServer):
         return f"socket://{self.address[0]}:{self.address[1]}"
 
     def _fd(self) -> int | None:
-        if self._client is not None:
-            return self._client.fileno()
-        listener = self._listener.fileno()
-        readable, _, _ = select.select([listener, self._wake_r], [], [], _POLL)
-        if listener in readable:
+        return self._client.fileno() if self._client is not None else self._listener.fileno()
+
+    def _recv(self) -> bytes | None:
+        if self._client is None:  # the listener is readable: a client is knocking
             with contextlib.suppress(BlockingIOError):
                 self._client, peer = self._listener.accept()
                 self._client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
                 self.bus.reset()
                 log.info("client connected from %s:%d", *peer[:2])
-        return None
-
-    def _recv(self) -> bytes | None:
-        assert self._client is not None
+            return b""
         try:
             data = self._client.recv(4096)
         except (ConnectionError, OSError):

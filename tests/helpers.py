@@ -846,3 +846,308 @@ Frame Time: 0.0333333
 1 2 3 4 5 6 7 8 9
 9 8 7 6 5 4 3 2 1
 """
+
+
+def brute_force_min_clearance(arm, q, world=None, samples: int = 24) -> dict[str, float]:
+    """Independent check of ``retarget.collision``: every pair's clearance (metres) in pose ``q`` (radians), by
+    sampling points on each capsule's axis and every box's volume grid (``samples`` per axis) and taking the
+    smallest distance; pairs named as ``CollisionModel.pair_names``.  Uses only the arm's joint data and this
+    module's own FK (``_rot``/``_trans`` style, per joint), not the model's code."""
+    from retarget.arm.kinematics import axis_angle_matrix, transform
+    from retarget.collision import Box, CollisionModel
+
+    model = CollisionModel.for_arm(arm, world=world)
+    frames = [np.eye(4)]
+    for joint, angle in zip(arm.joints, q, strict=True):
+        spin = np.eye(4)
+        spin[:3, :3] = axis_angle_matrix(np.asarray(joint.axis), angle)
+        frames.append(frames[-1] @ transform(joint.origin_xyz, joint.origin_rpy) @ spin)
+    t = np.linspace(0.0, 1.0, samples)
+
+    def cloud(link):  # (k, 3) axis points (base frame) and the radius to subtract
+        T = frames[link.frame]
+        if isinstance(link.shape, Box):
+            c, h = np.asarray(link.shape.center), np.asarray(link.shape.half_size)
+            g = np.stack(np.meshgrid(*[c[k] + h[k] * (2 * t - 1) for k in range(3)]), -1).reshape(-1, 3)
+            return g @ T[:3, :3].T + T[:3, 3], 0.0
+        a, b = np.asarray(link.shape.a), np.asarray(link.shape.b)
+        pts = a + t[:, None] * (b - a)
+        return pts @ T[:3, :3].T + T[:3, 3], link.shape.radius
+
+    shapes = {link.name: cloud(link) for link in model.geometry.links}
+    out = {}
+    for name in model.pair_names:
+        u, v = name.split("/")
+        pu, ru = shapes[u]
+        if v == "table":
+            out[name] = float(pu[:, 2].min() - ru)
+            continue
+        if v.startswith("keep_out["):
+            zone = model.world.keep_out[int(v[9:-1])]
+            if isinstance(zone, Box):
+                c, h = np.asarray(zone.center), np.asarray(zone.half_size)
+                q_ = np.abs(pu - c) - h
+                sd = np.linalg.norm(np.maximum(q_, 0), axis=1) + np.minimum(q_.max(axis=1), 0)
+                out[name] = float(sd.min() - ru)
+            else:
+                out[name] = float(np.linalg.norm(pu - np.asarray(zone.center), axis=1).min() - ru - zone.radius)
+            continue
+        pv, rv = shapes[v]
+        gaps = np.linalg.norm(pu[:, None] - pv[None], axis=2).min()
+        out[name] = float(gaps - ru - rv + model.geometry.nest_depth(u, v))  # nest: counted from -depth
+    return out
+
+
+def brute_force_min_clearances(arm, Q, world=None, samples: int = 16, chunk: int = 500) -> np.ndarray:
+    """Independent check of ``retarget.collision`` over many poses: the smallest pair clearance (metres) of each
+    pose of ``Q`` ``(n_poses, n_joints)`` radians, ``(n_poses,)``; pairs as ``CollisionModel.pair_names``.
+
+    Its own FK, vectorised over the poses (``chunk`` at a time: the property tests check ten thousand).  A capsule
+    is ``samples`` points on its axis and its radius; a box is a 5 x 5 x 5 grid of points and, against points, its
+    exact signed distance in its own frame.  Sampling over-estimates a distance by at most half a sample spacing,
+    so a pose found within the clearance truly is."""
+    from retarget.arm.kinematics import axis_angle_matrix, transform
+    from retarget.collision import Box, CollisionModel
+
+    Q = np.atleast_2d(np.asarray(Q, dtype=np.float64))
+    model = CollisionModel.for_arm(arm, world=world)
+    links = {link.name: link for link in model.geometry.links}
+    t = np.linspace(0.0, 1.0, samples)
+    g = np.linspace(-1.0, 1.0, 5)
+    grid = np.stack(np.meshgrid(g, g, g), -1).reshape(-1, 3)
+
+    def box_sdf(p, center, half):  # p (..., 3) in the box's frame
+        q_ = np.abs(p - np.asarray(center)) - np.asarray(half)
+        return np.linalg.norm(np.maximum(q_, 0), axis=-1) + np.minimum(q_.max(axis=-1), 0)
+
+    def worst_of(Qc):
+        frames = [np.broadcast_to(np.eye(4), (len(Qc), 4, 4))]
+        for i, joint in enumerate(arm.joints):
+            spin = np.zeros((len(Qc), 4, 4))
+            spin[:, :3, :3] = axis_angle_matrix(np.asarray(joint.axis, dtype=np.float64), Qc[:, i])
+            spin[:, 3, 3] = 1.0
+            frames.append(frames[-1] @ transform(joint.origin_xyz, joint.origin_rpy) @ spin)
+        clouds = {}  # name -> (points (n, k, 3) base frame, radius)
+        for name, link in links.items():
+            T = frames[link.frame]
+            if isinstance(link.shape, Box):
+                local, r = np.asarray(link.shape.center) + grid * np.asarray(link.shape.half_size), 0.0
+            else:
+                a, b = np.asarray(link.shape.a), np.asarray(link.shape.b)
+                local, r = a + t[:, None] * (b - a), link.shape.radius
+            clouds[name] = (np.einsum("nij,kj->nki", T[:, :3, :3], local) + T[:, None, :3, 3], r)
+
+        def to_box(points, name):  # signed distance of base-frame points to box link `name`
+            T, box = frames[links[name].frame], links[name].shape
+            local = np.einsum("nji,nkj->nki", T[:, :3, :3], points - T[:, None, :3, 3])
+            return box_sdf(local, box.center, box.half_size)
+
+        worst = np.full(len(Qc), np.inf)
+        for pair in model.pair_names:
+            u, v = pair.split("/")
+            if isinstance(links[u].shape, Box) and v in links and not isinstance(links[v].shape, Box):
+                u, v = v, u
+            pu, ru = clouds[u]
+            if v == "table":
+                d = pu[..., 2].min(axis=1) - ru
+            elif v.startswith("keep_out["):
+                zone = model.world.keep_out[int(v[9:-1])]
+                if isinstance(zone, Box):
+                    d = box_sdf(pu, zone.center, zone.half_size).min(axis=1) - ru
+                else:
+                    d = np.linalg.norm(pu - np.asarray(zone.center), axis=-1).min(axis=1) - ru - zone.radius
+            elif isinstance(links[v].shape, Box):
+                d = to_box(pu, v).min(axis=1) - ru
+            else:
+                pv, rv = clouds[v]
+                d = np.linalg.norm(pu[:, :, None] - pv[:, None], axis=-1).min(axis=(1, 2)) - ru - rv
+            worst = np.minimum(worst, d + model.geometry.nest_depth(u, v))
+        return worst
+
+    return np.concatenate([worst_of(Q[i : i + chunk]) for i in range(0, len(Q), chunk)]) if len(Q) else np.empty(0)
+
+
+# ------------------------------------------------------------------ ROBOTIS-style example programs (issue 17)
+# DynamixelSDK's own Python examples (ROBOTIS-GIT/DynamixelSDK, python/tests/protocol2_0/ping.py, read_write.py,
+# sync_read_write.py; Apache-2.0, (c) ROBOTIS) are not shipped in the dynamixel-sdk wheel, and copying them here
+# would take the licence's full terms (its text and change notices), so these programs are written for this
+# repository after their structure: a module-level getch() that puts the terminal on stdin in raw mode (termios),
+# "Press any key to continue! (or press ESC to quit!)" prompts, PortHandler/PacketHandler(2.0) on DEVICENAME at
+# 57600 baud, the X-series addresses, and the same calls and printed lines.  Set RETARGET_ROBOTIS_EXAMPLES to a
+# DynamixelSDK checkout's python/tests/protocol2_0 folder to run ROBOTIS's files themselves (DEVICENAME replaced).
+
+_ROBOTIS_PROLOGUE = '''
+import sys, tty, termios
+fd = sys.stdin.fileno()
+old_settings = termios.tcgetattr(fd)
+def getch():
+    try:
+        tty.setraw(sys.stdin.fileno())
+        ch = sys.stdin.read(1)
+    finally:
+        termios.tcsetattr(fd, termios.TCSADRAIN, old_settings)
+    return ch
+from dynamixel_sdk import *
+ADDR_TORQUE_ENABLE = 64
+ADDR_GOAL_POSITION = 116
+ADDR_PRESENT_POSITION = 132
+DXL_MINIMUM_POSITION_VALUE = 0
+DXL_MAXIMUM_POSITION_VALUE = 4095
+BAUDRATE = 57600
+PROTOCOL_VERSION = 2.0
+DEVICENAME = '/dev/ttyUSB0'
+TORQUE_ENABLE, TORQUE_DISABLE = 1, 0
+DXL_MOVING_STATUS_THRESHOLD = 20
+portHandler = PortHandler(DEVICENAME)
+packetHandler = PacketHandler(PROTOCOL_VERSION)
+if portHandler.openPort():
+    print("Succeeded to open the port")
+else:
+    print("Failed to open the port"); getch(); quit()
+if portHandler.setBaudRate(BAUDRATE):
+    print("Succeeded to change the baudrate")
+else:
+    print("Failed to change the baudrate"); getch(); quit()
+def report(result, error, ok=None):
+    if result != COMM_SUCCESS:
+        print("%s" % packetHandler.getTxRxResult(result))
+    elif error != 0:
+        print("%s" % packetHandler.getRxPacketError(error))
+    elif ok:
+        print(ok)
+'''
+
+ROBOTIS_EXAMPLES: dict[str, str] = {
+    "ping": _ROBOTIS_PROLOGUE + '''
+DXL_ID = 1
+model_number, result, error = packetHandler.ping(portHandler, DXL_ID)
+report(result, error, "[ID:%03d] ping Succeeded. Dynamixel model number : %d" % (DXL_ID, model_number))
+portHandler.closePort()
+''',
+    "read_write": _ROBOTIS_PROLOGUE + '''
+DXL_ID = 1
+index = 0
+goals = [DXL_MINIMUM_POSITION_VALUE, DXL_MAXIMUM_POSITION_VALUE]
+result, error = packetHandler.write1ByteTxRx(portHandler, DXL_ID, ADDR_TORQUE_ENABLE, TORQUE_ENABLE)
+report(result, error, "Dynamixel has been successfully connected")
+while 1:
+    print("Press any key to continue! (or press ESC to quit!)")
+    if getch() == chr(0x1b):
+        break
+    result, error = packetHandler.write4ByteTxRx(portHandler, DXL_ID, ADDR_GOAL_POSITION, goals[index])
+    report(result, error)
+    while 1:
+        present, result, error = packetHandler.read4ByteTxRx(portHandler, DXL_ID, ADDR_PRESENT_POSITION)
+        report(result, error)
+        print("[ID:%03d] GoalPos:%03d  PresPos:%03d" % (DXL_ID, goals[index], present))
+        if not abs(goals[index] - present) > DXL_MOVING_STATUS_THRESHOLD:
+            break
+    index = 1 - index
+result, error = packetHandler.write1ByteTxRx(portHandler, DXL_ID, ADDR_TORQUE_ENABLE, TORQUE_DISABLE)
+report(result, error)
+portHandler.closePort()
+''',
+    "sync_read_write": _ROBOTIS_PROLOGUE + '''
+DXL1_ID, DXL2_ID = 1, 2
+LEN = 4
+index = 0
+goals = [DXL_MINIMUM_POSITION_VALUE, DXL_MAXIMUM_POSITION_VALUE]
+groupSyncWrite = GroupSyncWrite(portHandler, packetHandler, ADDR_GOAL_POSITION, LEN)
+groupSyncRead = GroupSyncRead(portHandler, packetHandler, ADDR_PRESENT_POSITION, LEN)
+for dxl_id in (DXL1_ID, DXL2_ID):
+    result, error = packetHandler.write1ByteTxRx(portHandler, dxl_id, ADDR_TORQUE_ENABLE, TORQUE_ENABLE)
+    report(result, error, "Dynamixel#%d has been successfully connected" % dxl_id)
+    if groupSyncRead.addParam(dxl_id) != True:
+        print("[ID:%03d] groupSyncRead addparam failed" % dxl_id); quit()
+while 1:
+    print("Press any key to continue! (or press ESC to quit!)")
+    if getch() == chr(0x1b):
+        break
+    goal = goals[index]
+    param = [DXL_LOBYTE(DXL_LOWORD(goal)), DXL_HIBYTE(DXL_LOWORD(goal)),
+             DXL_LOBYTE(DXL_HIWORD(goal)), DXL_HIBYTE(DXL_HIWORD(goal))]
+    for dxl_id in (DXL1_ID, DXL2_ID):
+        if groupSyncWrite.addParam(dxl_id, param) != True:
+            print("[ID:%03d] groupSyncWrite addparam failed" % dxl_id); quit()
+    result = groupSyncWrite.txPacket()
+    if result != COMM_SUCCESS:
+        print("%s" % packetHandler.getTxRxResult(result))
+    groupSyncWrite.clearParam()
+    while 1:
+        result = groupSyncRead.txRxPacket()
+        if result != COMM_SUCCESS:
+            print("%s" % packetHandler.getTxRxResult(result))
+        for dxl_id in (DXL1_ID, DXL2_ID):
+            if groupSyncRead.isAvailable(dxl_id, ADDR_PRESENT_POSITION, LEN) != True:
+                print("[ID:%03d] groupSyncRead getdata failed" % dxl_id); quit()
+        p1 = groupSyncRead.getData(DXL1_ID, ADDR_PRESENT_POSITION, LEN)
+        p2 = groupSyncRead.getData(DXL2_ID, ADDR_PRESENT_POSITION, LEN)
+        print("[ID:%03d] GoalPos:%03d  PresPos:%03d\\t[ID:%03d] GoalPos:%03d  PresPos:%03d"
+              % (DXL1_ID, goal, p1, DXL2_ID, goal, p2))
+        if not ((abs(goal - p1) > DXL_MOVING_STATUS_THRESHOLD) and (abs(goal - p2) > DXL_MOVING_STATUS_THRESHOLD)):
+            break
+    index = 1 - index
+groupSyncRead.clearParam()
+for dxl_id in (DXL1_ID, DXL2_ID):
+    result, error = packetHandler.write1ByteTxRx(portHandler, dxl_id, ADDR_TORQUE_ENABLE, TORQUE_DISABLE)
+    report(result, error)
+portHandler.closePort()
+''',
+}
+
+
+def robotis_example(name: str, device: str) -> str:
+    """The source of example ``name`` ("ping", "read_write", "sync_read_write") with DEVICENAME = ``device``:
+    ROBOTIS's own file when RETARGET_ROBOTIS_EXAMPLES names a folder holding it, else the program above."""
+    import re
+
+    folder = os.environ.get("RETARGET_ROBOTIS_EXAMPLES")
+    source = ROBOTIS_EXAMPLES[name]
+    if folder and (Path(folder) / f"{name}.py").is_file():
+        source = (Path(folder) / f"{name}.py").read_text()
+    changed, n = re.subn(r"^DEVICENAME(\s*)=.*$", f"DEVICENAME\\1= {device!r}", source, count=1, flags=re.M)
+    assert n == 1, f"no DEVICENAME line in example {name}"
+    return changed
+
+
+def run_with_keys(script: Path, keys: Sequence[bytes], *, prompt: bytes, timeout: float = 30.0) -> str:
+    """Run ``python script`` with a terminal on stdin (a pty, as the examples' getch needs) and type ``keys``, one
+    per ``prompt`` it prints; returns everything it printed.  Fails after ``timeout`` seconds.
+
+    getch() sets raw mode with TCSAFLUSH, which discards a key typed before it: a key that brought no new output
+    within 0.2 s (the program was not reading yet) is typed again.
+    """
+    import select
+    import subprocess
+    import sys
+    import time
+
+    master, slave = os.openpty()
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    proc = subprocess.Popen([sys.executable, str(script)], stdin=slave, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, env=env)  # fmt: skip
+    os.close(slave)
+    assert proc.stdout is not None
+    out, typed, deadline = b"", 0, time.monotonic() + timeout
+    sent: tuple[float, int] | None = None  #: (when, len(out) then) of the key typed last, until output confirms it
+    try:
+        while True:
+            if time.monotonic() > deadline:
+                proc.kill()
+                raise AssertionError(f"{script.name} still running after {timeout} s:\n{out.decode(errors='replace')}")
+            if select.select([proc.stdout], [], [], 0.02)[0]:
+                chunk = os.read(proc.stdout.fileno(), 65536)
+                if not chunk:
+                    break
+                out += chunk
+            if sent is not None and out[sent[1] :].strip():
+                sent, typed = None, typed + 1  # the program answered the key
+            if typed < len(keys) and out.count(prompt + b"\n") > typed:
+                if sent is None or time.monotonic() - sent[0] > 0.2:
+                    if proc.poll() is None:
+                        os.write(master, keys[typed])
+                        sent = (time.monotonic(), len(out))
+    finally:
+        proc.wait(timeout=10)
+        os.close(master)
+    return out.decode(errors="replace")

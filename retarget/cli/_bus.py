@@ -11,6 +11,7 @@ the control loop); ``--json`` then prints it with the failure in it (:func:`fail
 from __future__ import annotations
 
 import argparse
+import math
 import signal
 import sys
 from collections.abc import Callable, Iterator
@@ -30,6 +31,7 @@ from retarget.errors import BusError, ConfigError
 from sim.transport import bus_from_url
 
 SHUTDOWN_MODES = ("hold", "rest", "off")
+WATCHDOG_MIN_MS, WATCHDOG_MAX_MS = 20.0, 2540.0  #: Bus Watchdog: 1..127 units of 20 ms (drivers.watchdog)
 
 
 def add_bus_arguments(parser: argparse.ArgumentParser | Any, *, shutdown: str = "rest") -> None:
@@ -59,6 +61,15 @@ def add_bus_arguments(parser: argparse.ArgumentParser | Any, *, shutdown: str = 
         "3 times per servo, instead of stopping the run. Risk: the reboot drops that servo's torque for a moment "
         "(the joint can sag or fall) and the cause, such as a jam or a load, may still be there",
     )
+    parser.add_argument(
+        "--watchdog-ms",
+        type=float,
+        default=None,
+        metavar="MS",
+        help="arm the servos' Bus Watchdog: if this program dies or the cable is pulled, every servo stops where it "
+        f"is within MS ms instead of finishing its last move ({WATCHDOG_MIN_MS:g}..{WATCHDOG_MAX_MS:g}, 20 ms steps, "
+        "at least 3 ticks at --rate; default off)",
+    )
 
 
 def check_bus_options(args: argparse.Namespace) -> None:
@@ -68,6 +79,11 @@ def check_bus_options(args: argparse.Namespace) -> None:
     if args.fast and not is_sim_port(args.port):
         raise ConfigError("--fast needs the simulated bus (a sim:// port or none), not a real port", key="--port",
                           value=args.port)  # fmt: skip
+    watchdog_ms = getattr(args, "watchdog_ms", None)
+    in_range = watchdog_ms is None or (math.isfinite(watchdog_ms) and WATCHDOG_MIN_MS <= watchdog_ms <= WATCHDOG_MAX_MS)
+    if not in_range:
+        message = f"Expected a watchdog period from {WATCHDOG_MIN_MS:g} to {WATCHDOG_MAX_MS:g} ms"
+        raise ConfigError(message, key="--watchdog-ms", value=watchdog_ms)
     if args.telemetry == "-" and args.json:
         raise ConfigError("--telemetry - and --json both write to stdout; give the telemetry a file", key="--telemetry",
                           value=args.telemetry)  # fmt: skip
@@ -183,6 +199,17 @@ def servo_limits(arm: Arm, config: LoopConfig | None) -> dict[str, float | None]
     return {"dt": 1.0 / config.rate, "profile_velocity": profile_velocity}
 
 
+def watchdog_option(args: argparse.Namespace, config: LoopConfig | None) -> dict[str, float]:
+    """``--watchdog-ms`` as the driver's ``watchdog`` (s); ConfigError when it is shorter than 3 ticks at ``--rate``."""
+    watchdog_ms = getattr(args, "watchdog_ms", None)
+    if watchdog_ms is None:
+        return {}
+    if config is not None and watchdog_ms < 3000.0 / config.rate:
+        message = f"Expected at least 3 control ticks ({3000.0 / config.rate:g} ms at --rate {config.rate:g})"
+        raise ConfigError(message, key="--watchdog-ms", value=watchdog_ms)
+    return {"watchdog": watchdog_ms / 1000.0}
+
+
 def build_bus(args: argparse.Namespace, arm: Arm, config: LoopConfig | None = None) -> BusSetup:
     """The driver on ``--port``; for a simulated port, the in-process SimBus and the clock shared with it.
 
@@ -193,7 +220,7 @@ def build_bus(args: argparse.Namespace, arm: Arm, config: LoopConfig | None = No
     error and configures it again (``DynamixelBus(recover=True)``).
     """
 
-    limits = servo_limits(arm, config)
+    limits: dict[str, Any] = {**servo_limits(arm, config), **watchdog_option(args, config)}
     recover = bool(getattr(args, "recover", False))
     port: str | None = args.port
     if not is_sim_port(port):

@@ -15,7 +15,9 @@ from retarget.cli._arm import add_link_arguments, load_arm_option
 from retarget.control.clock import MonotonicClock
 from retarget.errors import ConfigError
 from sim.bus import SimBus
+from sim.control import ControlServer, parse_address
 from sim.faults import Faults
+from sim.hand_commands import HandCommand, HandSchedule, parse_hand
 from sim.server import PtyServer, SimServer, TcpServer
 
 EPILOG = """\
@@ -27,11 +29,23 @@ examples:
   retarget sim --drop 0.05 --seed 1              lose 5 % of the replies, repeatably
   retarget sim --unplug 4@10 --hwerror 3:overload@5
                                                  servo 4 goes silent after 10 s; servo 3 overloads after 5 s
-  retarget sim --wire --delay-ms 6:3             wire time at the baud rate; servo 6 answers 3 ms late
+  retarget sim --delay-ms 6:3 --boot-ms 0        servo 6 answers 3 ms late; a REBOOT is silent for no time
+  retarget sim --no-wire                         answer at once (no wire time at the baud rate): faster tests
+  retarget sim --hand 2:sweep:1024-3072:2        a hand turns limp servo 2 back and forth, 2 s per pass
+  retarget sim --hand 3:to:3000:1@5 --hand 3:release@8
+                                                 5 s in, servo 3 is turned to 3000 in 1 s; let go at 8 s
+  retarget sim --control 127.0.0.1:4001          take commands on a socket: echo 'hand 2 to 3000 1' | nc ...
   retarget sim --arm robot.urdf --tip ee_link    the servos of a URDF arm (servo IDs from robot.servos.toml)
 
-The first line on stdout is what to open: a device path (/dev/pts/N) or a socket:// URL; messages go to
-stderr.  Fault values take an optional servo ID: --drop 0.1 (every servo) or --drop 3:0.5 (servo 3).
+The first line on stdout is what to open: a device path (/dev/pts/N) or a socket:// URL; with --control the
+second line is the control address (HOST:PORT or unix:PATH); messages go to stderr.  Fault values take an
+optional servo ID: --drop 0.1 (every servo) or --drop 3:0.5 (servo 3).  Replies take the time a real wire
+takes at the baud rate (10 bits per byte each way), unless --no-wire.
+
+Hands move servos whose torque is off (as a person turns a limp joint, e.g. for lerobot-calibrate); pulses
+are Present Position's (4096 per turn).  --hand ID:sweep:LO-HI:SECONDS, ID:to:PULSES:SECONDS, ID:release,
+each with an optional @START (seconds after start).  The control socket takes one command per line and
+answers one JSON line: hand ID sweep LO HI SECONDS | hand ID to PULSES SECONDS | release ID | status [ID...].
 Ctrl-C or SIGTERM stops the server cleanly (exit status 0).
 """
 
@@ -58,7 +72,10 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         "--rdt", type=int, default=None, help="Return Delay Time item, 2 us units (default 250, factory)"
     )
     servos.add_argument(
-        "--boot-ms", type=float, default=0.0, help="how long a servo stays silent after REBOOT (default 0)"
+        "--boot-ms",
+        type=float,
+        default=DEFAULT_BOOT_MS,
+        help=f"how long a servo stays silent after answering REBOOT (default {DEFAULT_BOOT_MS:g}, measured on XC330)",
     )
     where = parser.add_mutually_exclusive_group()
     where.add_argument("--pty", action="store_true", help="serve on a new pseudo-terminal (the default)")
@@ -75,8 +92,27 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         metavar="ID:KIND@SECONDS",
         help="hardware error: overload, overheating, input_voltage, electrical_shock, motor_encoder",
     )
-    faults.add_argument("--wire", action="store_true", help="model the wire time at the baud rate (10 bits/byte)")
+    faults.add_argument(
+        "--wire",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="take the wire time at the baud rate, 10 bits per byte (default); --no-wire answers at once",
+    )
     faults.add_argument("--seed", type=int, default=0, help="seed of the random faults (default 0)")
+    hands = parser.add_argument_group("hands (move servos whose torque is off)")
+    hands.add_argument(
+        "--hand",
+        action="append",
+        default=[],
+        metavar="ID:GESTURE[@START]",
+        help="ID:sweep:LO-HI:SECONDS, ID:to:PULSES:SECONDS or ID:release (repeatable)",
+    )
+    hands.add_argument(
+        "--control",
+        default=None,
+        metavar="[HOST:]PORT|unix:PATH",
+        help="a control socket for hand and status commands, one per line (port 0: any free)",
+    )
     return parser
 
 
@@ -90,6 +126,10 @@ def _tcp_address(text: str) -> tuple[str, int]:
         raise ConfigError("Expected a port 0..65535", key="--tcp", value=text)
     return (host if sep and host else "127.0.0.1"), number
 
+
+#: Silence after answering REBOOT, ms: an XC330 "refuses to reply for about 0.4 seconds while rebooting"
+#: (ROBOTIS-GIT/emanual#1698; the e-Manual documents no boot time).
+DEFAULT_BOOT_MS = 400.0
 
 #: The documented ranges of the simulator's numeric options.
 MAX_RDT = 254  #: Return Delay Time item, 2 us units (e-Manual: 0..254)
@@ -138,6 +178,10 @@ def check_options(args: argparse.Namespace) -> dict[str, set[int]]:
             _finite(number, option, item, 0.0, hi)
             if sid.strip().isdigit():
                 ids.setdefault(option, set()).add(int(sid))
+    for command in hand_commands(args):
+        ids.setdefault("--hand", set()).add(command.id)
+    if args.control is not None:
+        parse_address(args.control)
     for option, values in (("--unplug", args.unplug), ("--hwerror", args.hwerror)):
         for item in _items(values):
             head, sep, at = item.rpartition("@")
@@ -147,6 +191,11 @@ def check_options(args: argparse.Namespace) -> dict[str, set[int]]:
             if sid.isdigit():
                 ids.setdefault(option, set()).add(int(sid))
     return ids
+
+
+def hand_commands(args: argparse.Namespace) -> list[HandCommand]:
+    """The --hand items, parsed (ConfigError keyed --hand quoting the bad one)."""
+    return [parse_hand(item) for item in args.hand]
 
 
 def _check_fault_ids(fault_ids: dict[str, set[int]], bus_ids: tuple[int, ...]) -> None:
@@ -220,6 +269,16 @@ def run(args: argparse.Namespace) -> int:
     else:
         pty = PtyServer(bus)
         server, where = pty, pty.path
+    hands = HandSchedule(bus, hand_commands(args))
+    server.add_hook(hands)
+    control = None
+    try:
+        if args.control is not None:
+            control = ControlServer(args.control, hands)
+            server.add_hook(control)
+    except BaseException:
+        server.close()
+        raise
     stop = threading.Event()
 
     def on_signal(signum: int, frame: object) -> None:
@@ -228,15 +287,21 @@ def run(args: argparse.Namespace) -> int:
     previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         print(where, flush=True)
+        if control is not None:
+            print(control.address, flush=True)
+        wire = "wire time at the baud rate" if bus.faults.wire else "no wire time (--no-wire)"
         print(
-            f"retarget sim: serving servos {', '.join(map(str, bus.ids))} at {bus.baud} baud on {where}; "
-            "Ctrl-C to stop",
+            f"retarget sim: serving servos {', '.join(map(str, bus.ids))} at {bus.baud} baud on {where} ({wire})"
+            + (f"; control socket on {control.address}" if control is not None else "")
+            + "; Ctrl-C to stop",
             file=sys.stderr,
             flush=True,
         )
         server.serve_forever(stop)
     finally:
         server.close()
+        if control is not None:
+            control.close()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     print("retarget sim: stopped", file=sys.stderr)
