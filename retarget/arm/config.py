@@ -20,6 +20,10 @@ TOML schema (every angle in the file is in DEGREES, lengths in metres; the loade
     [poses]
     home = [0, 0, 0, 0, 0, 0]         # required, degrees, one per joint, inside the limits
     rest = [0, -103.1, 88.8, 0, 45.8, 0]  # optional (default: home), the "sleep" pose
+    calibration = [0, 0, 0, 0, 0, 0]  # optional (default: home), the reference pose of `retarget calibrate`
+
+    requires_calibration = false      # optional: true = a real port needs a `retarget calibrate` file first
+    calibrate_directions = false      # optional: true = `retarget calibrate` also finds each servo's direction
 
     [[joints]]                        # one table per joint, base to tip
     name = "waist"                    # required, unique
@@ -29,6 +33,7 @@ TOML schema (every angle in the file is in DEGREES, lengths in metres; the loade
     axis = [0, 0, 1]                  # required, in the joint frame, any non-zero length
     limits = [-180, 180]              # required, [lower, upper] degrees, lower < upper
     max_velocity = 180                # required, degrees per second, > 0
+    calibration_hint = "upper arm vertical"   # optional: how to set it for the calibration pose
     servos = [                        # required, primary first, then shadows
         { id = 2, model = "XM430-W350" },
         { id = 3, model = "XM430-W350", direction = -1 },   # direction +1/-1, offset ticks
@@ -40,6 +45,15 @@ TOML schema (every angle in the file is in DEGREES, lengths in metres; the loade
     limits = [-21.7, 72.7]            # required, degrees of the servo shaft
 
     [mapping]                         # optional, any keys: read by retarget.mapping.config
+
+    [collision]                       # optional: link shapes and allowed pairs (retarget.arm.geometry)
+    allowed = [["gripper", "upper_arm"]]
+    [[collision.links]]
+    name = "upper_arm"
+    frame = "shoulder"                # "base" or the joint whose child frame carries the shape
+    capsule = { a = [0, 0, 0.04], b = [0.05, 0, 0.25], radius = 0.03 }   # or box (base only), sphere
+
+    [world]                           # optional: table = true, keep_out = [{ box = {...} }, { sphere = {...} }]
 
 A servo table has ``id`` (0-252, unique over the arm), ``model`` (one of
 ``retarget.arm.SERVO_MODELS``), ``direction`` (+1 normal, -1 reverse; default +1) and
@@ -76,6 +90,7 @@ from typing import Any, TypeGuard
 
 import numpy as np
 
+from retarget.arm.geometry import read_collision, read_world
 from retarget.arm.model import SERVO_MODELS, SUPPORTED_BAUDS, Arm, Gripper, Joint, JointType, Servo
 from retarget.errors import ConfigError
 
@@ -85,12 +100,15 @@ __all__ = ["URDF_SUFFIXES", "ArmFileReader", "arm_dirs", "is_urdf", "list_arms",
 _TOML_SUFFIXES = (".toml",)
 URDF_SUFFIXES = (".urdf", ".xml")
 
-_TOP_KEYS = {"name", "title", "baud", "tool", "poses", "joints", "gripper", "mapping"}
-_JOINT_KEYS = {"name", "type", "xyz", "rpy", "axis", "limits", "max_velocity", "servos"}
+_TOP_KEYS = {"name", "title", "baud", "tool", "poses", "joints", "gripper", "mapping", "collision", "world"} | {
+    "requires_calibration",
+    "calibrate_directions",
+}
+_JOINT_KEYS = {"name", "type", "xyz", "rpy", "axis", "limits", "max_velocity", "servos", "calibration_hint"}
 _SERVO_KEYS = {"id", "model", "direction", "offset"}
 _GRIPPER_KEYS = {"name", "servo", "limits"}
 _TOOL_KEYS = {"link", "xyz", "rpy"}
-_POSE_KEYS = {"home", "rest"}
+_POSE_KEYS = {"home", "rest", "calibration"}
 _MISSING = object()
 
 #: The physical ranges of an arm file's numbers (see the module notes).
@@ -302,6 +320,16 @@ class ArmFileReader:
         rest = self.pose(t["rest"], f"{key}.rest", joints) if "rest" in t else home
         return home, rest
 
+    def calibration_pose(self, value: object, joints: tuple[Joint, ...], key: str = "poses") -> tuple[float, ...]:
+        """``[poses] calibration`` (default: home), the reference pose of ``retarget calibrate``."""
+        t = self.table(value, key, _POSE_KEYS, ("home",))
+        return self.pose(t.get("calibration", t["home"]), f"{key}.calibration", joints)
+
+    def flag(self, value: object, key: str) -> bool:
+        if not isinstance(value, bool):
+            raise self.error("expected true or false", key, value)
+        return value
+
     def pose(self, value: object, key: str, joints: tuple[Joint, ...]) -> tuple[float, ...]:
         raw = self._numbers(value, key, len(joints))
         pose = tuple(math.radians(float(v)) for v in raw)
@@ -336,6 +364,9 @@ class ArmFileReader:
             upper=hi,
             max_velocity=self.velocity(t["max_velocity"], f"{key}.max_velocity"),
             servos=self.servos(t["servos"], f"{key}.servos"),
+            calibration_hint=self.string(t["calibration_hint"], f"{key}.calibration_hint")
+            if "calibration_hint" in t
+            else "",
         )
 
     def arm(self, data: Mapping[str, Any]) -> Arm:
@@ -372,6 +403,11 @@ class ArmFileReader:
             gripper=gripper,
             mapping=self.mapping(t.get("mapping", {})),
             source=self.path,
+            geometry=read_collision(self, t["collision"], joints) if "collision" in t else None,
+            world=read_world(self, t.get("world", {})),
+            calibration_pose=np.array(self.calibration_pose(t["poses"], joints), dtype=np.float64),
+            requires_calibration=self.flag(t.get("requires_calibration", False), "requires_calibration"),
+            calibrate_directions=self.flag(t.get("calibrate_directions", False), "calibrate_directions"),
         )
 
 

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from retarget.arm.kinematics import Chain
+from retarget.collision.shapes import Geometry, World
 
 #: Servo models the arm descriptions may name; ``drivers.control_table`` holds their registers.
 SERVO_MODELS: tuple[str, ...] = ("XL430-W250", "XM430-W350", "XL330-M288", "XM540-W270")
@@ -74,6 +75,8 @@ class Joint:
     max_velocity: float  #: rad/s
     servos: tuple[Servo, ...]
     type: JointType = JointType.REVOLUTE
+    #: how to set this joint for the calibration pose, shown by ``retarget calibrate`` (``calibration_hint``)
+    calibration_hint: str = ""
 
 
 @dataclass(frozen=True)
@@ -118,12 +121,25 @@ class Arm:
     mapping: Mapping[str, Any] = field(default_factory=dict)
     source: Path | None = None  #: the file it was loaded from
     title: str = ""  #: human name, e.g. "WidowX-250 6DOF"
+    #: the link shapes and allowed pairs (``[collision]``), None for an arm without any
+    geometry: Geometry | None = None
+    #: the world the arm works in (``[world]``): the table plane and keep-out zones
+    world: World = field(default_factory=World)
+    #: ``(n_joints,) float64`` radians, the reference pose of ``retarget calibrate`` (``[poses] calibration``;
+    #: read-only; default the home pose)
+    calibration_pose: np.ndarray | None = field(default=None, compare=False)
+    #: the arm must be calibrated before it drives real servos (``requires_calibration``: a hand-built arm)
+    requires_calibration: bool = False
+    #: the calibration also finds each servo's direction (``calibrate_directions``: servos mounted either way)
+    calibrate_directions: bool = False
     #: private per-instance cache (precomputed kinematic chain, IK solvers by their knobs); not part of equality
     _cache: dict[Hashable, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         n = len(self.joints)
-        for name in ("home", "rest"):
+        if self.calibration_pose is None:
+            object.__setattr__(self, "calibration_pose", self.home)
+        for name in ("home", "rest", "calibration_pose"):
             pose = np.array(getattr(self, name), dtype=np.float64)
             if pose.shape != (n,):
                 raise ValueError(f"Expected a {name} pose of {n} angles, got shape {pose.shape}")

@@ -35,13 +35,22 @@ files of :mod:`retarget.arm.config`)::
     limits = [-20, 70]
 
     [mapping]                        # optional, read by retarget.mapping.config
+
+    [collision]                      # optional (see retarget.arm.urdf_collision)
+    radius = 0.02                    # capsule radius for meshes and links without <collision>, metres
+    allowed = [["link3", "link1"]]   # and nest, links: as in the arm files (frames by URDF joint name)
+
+    [world]                          # optional, as in the arm files
+
+Every chain link gets collision shapes from its ``<collision>`` boxes, cylinders and spheres, or a capsule
+between the joint origins for a mesh or a bare link (:mod:`retarget.arm.urdf_collision`).
 """
 
 from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from os import PathLike
 from pathlib import Path
 from typing import Any
@@ -57,15 +66,18 @@ from retarget.arm.config import (
     ArmFileReader,
     read_toml,
 )
+from retarget.arm.geometry import COLLISION_KEYS, read_collision, read_world
 from retarget.arm.kinematics import matrix_rpy, transform
 from retarget.arm.model import Arm, Joint
+from retarget.arm.urdf_collision import DEFAULT_RADIUS, UrdfCollision, chain_shapes, read_collisions
+from retarget.collision.shapes import Geometry
 from retarget.errors import ConfigError
 
 __all__ = ["UrdfJoint", "UrdfModel", "parse_urdf", "find_chain", "load_urdf_arm", "servo_file"]
 
 _MOVABLE = ("revolute", "continuous")
 _SUPPORTED = (*_MOVABLE, "fixed")
-_SERVO_TOP = {"name", "title", "baud", "base", "tip", "joints", "poses", "gripper", "mapping"}
+_SERVO_TOP = {"name", "title", "baud", "base", "tip", "joints", "poses", "gripper", "mapping", "collision", "world"}
 _SERVO_JOINT = {"servos", "limits", "max_velocity"}
 
 
@@ -94,6 +106,8 @@ class UrdfModel:
     links: tuple[str, ...]
     joints: dict[str, UrdfJoint]
     parent_joint: dict[str, UrdfJoint]
+    #: each link's ``<collision>`` elements (see :mod:`retarget.arm.urdf_collision`)
+    collisions: dict[str, tuple[UrdfCollision, ...]] = field(default_factory=dict)
 
     def error(self, message: str, key: str | None = None, value: Any = None) -> ConfigError:
         if value is None:
@@ -187,7 +201,8 @@ def parse_urdf(path: str | PathLike[str]) -> UrdfModel:
             raise ConfigError(f"link {child!r} is the child of two joints ({other}, {name})", path=path, key=key)
         joints[name] = joint
         parent_joint[child] = joint
-    model = UrdfModel(path, root.get("name", path.stem), tuple(links), joints, parent_joint)
+    collisions = read_collisions(root, path)
+    model = UrdfModel(path, root.get("name", path.stem), tuple(links), joints, parent_joint, collisions)
     _check_cycles(model)
     return model
 
@@ -278,6 +293,7 @@ def load_urdf_arm(
 
     joints: list[Joint] = []
     pending = np.eye(4)
+    frames: list[tuple[str, int, np.ndarray]] = [(chain[0].parent, 0, np.eye(4))]  # link, frame, link -> frame
     for uj in chain:
         if any(abs(v) > MAX_LENGTH for v in uj.xyz):
             raise model.error(
@@ -286,8 +302,10 @@ def load_urdf_arm(
         T = pending @ transform(uj.xyz, uj.rpy)
         if uj.type == "fixed":
             pending = T
+            frames.append((uj.child, len(joints), T))
             continue
         pending = np.eye(4)
+        frames.append((uj.child, len(joints) + 1, np.eye(4)))
         key = f"joints.{uj.name}"
         if uj.name not in entries:
             raise reader.error("missing the servo table of this chain joint", key)
@@ -346,6 +364,8 @@ def load_urdf_arm(
     name = reader.string(data.get("name", model.name), "name")
     baud = reader.baud(data.get("baud", DEFAULT_BAUD))
     gripper = reader.gripper(data["gripper"]) if "gripper" in data else None
+    ends = [j.origin_xyz for j in joints_t] + [tuple(pending[:3, 3].tolist())]
+    geometry = _geometry(reader, model, data.get("collision", {}), frames, joints_t, ends)
     return Arm(
         name=name,
         title=reader.string(data.get("title", name), "title"),
@@ -358,4 +378,28 @@ def load_urdf_arm(
         gripper=gripper,
         mapping=reader.mapping(data.get("mapping", {})),
         source=path,
+        geometry=geometry,
+        world=read_world(reader, data.get("world", {})),
     )
+
+
+def _geometry(
+    reader: ArmFileReader,
+    model: UrdfModel,
+    table: object,
+    frames: list[tuple[str, int, np.ndarray]],
+    joints: tuple[Joint, ...],
+    ends: list[tuple[float, float, float]],
+) -> Geometry:
+    """The chain's shapes from the URDF (:mod:`retarget.arm.urdf_collision`) and the servo file's ``[collision]``
+    table: ``radius`` (metres, for meshes and bare links), ``allowed``, ``nest`` and more ``links``."""
+    t = reader.table(table, "collision", (*COLLISION_KEYS, "radius"))
+    radius = reader.number(t["radius"], "collision.radius") if "radius" in t else DEFAULT_RADIUS
+    if not 0 < radius <= 1.0:
+        raise reader.error("expected a radius from 0 to 1 m", "collision.radius", radius)
+    try:
+        shapes, touching = chain_shapes(frames, model.collisions, ends, radius)
+    except ConfigError as exc:
+        raise model.error(f"collision shape: {exc.message}", key=exc.key, value=exc.value) from exc
+    geometry = read_collision(reader, t, joints, extra_keys=("radius",), required=(), more=shapes)
+    return replace(geometry, allowed=(*touching, *geometry.allowed))

@@ -30,6 +30,8 @@ examples:
   retarget arm my_arm.toml                       check a TOML arm file
   retarget arm robot.urdf --tip ee_link          import a URDF chain (servos from robot.servos.toml)
   retarget arm wx250s --ik 0.35,0,0.25           solve IK for a point (metres, base frame), from home
+  retarget arm wx250s --check 0,-100,90,0,45,0   each collision pair's clearance in a pose (degrees)
+  retarget arm wx250s --check rest --json        the same for the rest pose, as JSON
 """
 
 
@@ -49,8 +51,40 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument(
         "--from", dest="start", choices=("home", "rest"), default="home", help="IK start pose (default home)"
     )
+    parser.add_argument(
+        "--check", metavar="Q", help="print each collision pair's clearance in pose Q: degrees A,B,..., or home/rest"
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     return parser
+
+
+def parse_pose(arm: Any, text: str, option: str = "--check") -> list[float]:
+    """``"home"``, ``"rest"`` or one angle per joint in degrees ``"A,B,..."`` -> radians; ConfigError otherwise."""
+    if text in ("home", "rest"):
+        return [float(v) for v in getattr(arm, text).tolist()]
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) != arm.n_joints or not all(math.isfinite(v) for v in values):
+        raise ConfigError(f"expected home, rest or {arm.n_joints} finite angles in degrees", key=option, value=text)
+    return [math.radians(v) for v in values]
+
+
+def check(arm: Any, q: list[float]) -> dict[str, Any]:
+    """Every collision pair's clearance (mm) in pose ``q`` radians, worst first."""
+    from retarget.collision import CollisionModel
+
+    model = CollisionModel.for_arm(arm)
+    d = model.distances(q)
+    pairs = sorted(zip(model.pair_names, d.tolist(), strict=True), key=lambda item: item[1])
+    return {
+        "q_deg": [round(math.degrees(v), 4) for v in q],
+        "clearance_mm": round(model.clearance * 1e3, 3),
+        "clear": model.is_clear(q),
+        "within_limits": arm.within_limits(q, atol=1e-9),
+        "pairs": [{"pair": name, "clearance_mm": round(v * 1e3, 3)} for name, v in pairs],
+    }
 
 
 def parse_point(text: str, option: str = "--ik") -> tuple[float, float, float]:
@@ -80,6 +114,8 @@ def run(args: argparse.Namespace) -> int:
     report = describe(arm)
     if args.ik is not None:
         report["ik"] = solve(arm, parse_point(args.ik), args.start)
+    if args.check is not None:
+        report["check"] = check(arm, parse_pose(arm, args.check))
     if args.json:
         print_json(report)
     else:
@@ -191,4 +227,14 @@ def format_text(report: dict[str, Any]) -> str:
                      f"{ik['sweeps']} sweeps, {ik['restarts']} restarts")  # fmt: skip
         lines.append("  q (deg)    " + " ".join(f"{v:.2f}" for v in ik["q_deg"]))
         lines.append(f"  reached    ({rx:.4f}, {ry:.4f}, {rz:.4f}) m")
+    c = report.get("check")
+    if c:
+        state = "clear" if c["clear"] else "NOT clear"
+        limits = "" if c["within_limits"] else " (outside the joint limits)"
+        lines.append("")
+        lines.append(f"  check q (deg) {' '.join(f'{v:.2f}' for v in c['q_deg'])}{limits}: {state}, "
+                     f"clearance {c['clearance_mm']:g} mm")  # fmt: skip
+        for p in c["pairs"]:
+            flag = "  <" if p["clearance_mm"] < c["clearance_mm"] else ""
+            lines.append(f"    {p['pair']:32s} {p['clearance_mm']:9.1f} mm{flag}")
     return "\n".join(lines) + "\n"
