@@ -14,7 +14,7 @@ import argparse
 import sys
 from typing import IO, Any
 
-from retarget.cli.replay import add_clip_arguments, add_mapping_arguments, load_inputs, loop_config
+from retarget.cli.replay import Inputs, add_clip_arguments, add_mapping_arguments, load_inputs, loop_config
 from retarget.control import ControlLoop, TickRecord
 from retarget.control.clock import VirtualClock
 
@@ -41,11 +41,18 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     return parser
 
 
+def offline_loop(args: argparse.Namespace) -> tuple[Inputs, ControlLoop]:
+    """The clip's inputs and the loop that solves it without a bus (virtual clock), as export and ``retarget view``
+    run it: ``loop.run(None, q_start=loop.initial_pose())``."""
+    inputs = load_inputs(args)
+    config = loop_config(args, inputs.motion, collision=inputs.collision)
+    loop = ControlLoop(inputs.arm, inputs.targets, config=config, clock=VirtualClock(), clip_name=inputs.clip.name)
+    return inputs, loop
+
+
 def run(args: argparse.Namespace) -> int:
 
-    inputs = load_inputs(args)
-    config = loop_config(args, inputs.motion)
-    loop = ControlLoop(inputs.arm, inputs.targets, config=config, clock=VirtualClock(), clip_name=inputs.clip.name)
+    inputs, loop = offline_loop(args)
     q0 = loop.initial_pose()
     out: IO[str] = sys.stdout if args.output == "-" else open(args.output, "w", newline="", encoding="utf-8")  # noqa: SIM115
     try:
@@ -63,7 +70,9 @@ def run(args: argparse.Namespace) -> int:
     print(
         f"retarget: {summary.ticks} ticks of {inputs.arm.name} ({summary.duration_s:.2f} s of {inputs.clip.name}) "
         f"-> {args.output}; IK {summary.ik_converged_pct:.1f}% converged, "
-        f"clamped {summary.clamped_ticks}, velocity-limited {summary.velocity_limited_ticks}",
+        f"clamped {summary.clamped_ticks}, velocity-limited {summary.velocity_limited_ticks}, "
+        f"blocked {summary.blocked_ticks} (IK stopped short by a collision {summary.ik_blocked_ticks}), "
+        f"pushed out of blocked zones {summary.pushed_targets}",
         file=sys.stderr,
     )
     return 0

@@ -32,6 +32,8 @@ OPTIONS: dict[str, str] = {
     "mapping.origin": "--origin",
     "mapping.floor": "--floor",
     "mapping.orientation_weight": "--orientation-weight",
+    # retarget.collision.CollisionModel (the CLI takes the clearance in mm and checks it first)
+    "clearance": "--clearance",
     # retarget.arm.load_arm: the ends of a URDF chain
     "base": "--base",
     "tip": "--tip",

@@ -42,7 +42,8 @@ import math
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -52,10 +53,14 @@ from retarget.control.bus import Bus, BusStatus
 from retarget.control.clock import Clock
 from retarget.control.limits import StepLimiter
 from retarget.control.readback import ReadBack, SentTick, read_back_for
+from retarget.control.safety import GoalCheck
 from retarget.control.schedule import Schedule
 from retarget.control.source import JointGoal, TargetSource, TickSolver, TickTarget, as_target_source
 from retarget.control.stats import StatsRecorder, TickStats
 from retarget.errors import BusError, ConfigError
+
+if TYPE_CHECKING:
+    from retarget.collision import CollisionModel
 
 __all__ = ["JointGoal", "LoopConfig", "TargetSource", "TickRecord", "TickStats", "TickTarget", "run_ticks"]
 
@@ -87,6 +92,9 @@ class LoopConfig:
     #: peak joint speed, rad/s, of the lead-in to the clip's first pose on a bus (capped by each joint's
     #: ``velocity_scale x max_velocity``); 0 = no lead-in (the first ticks go there at full speed)
     lead_in_speed: float = 0.5
+    #: the collision model every goal is checked against before it is written (the pose and the joint-space
+    #: segment from the last goal, :mod:`~retarget.control.safety`); None: no check
+    collision: CollisionModel | None = field(default=None, compare=False)
 
     #: the documented ranges (a run's length and every check stay bounded): ticks per second, clip speed,
     #: velocity fraction, lead-in rad/s (or 0), IK sweeps per tick, IK tolerance metres
@@ -162,6 +170,10 @@ class TickRecord:
     lead_in: bool = False  #: a tick of the lead-in (slot < 0, before the clip's clock starts)
     #: servos whose read-back missed this tick (their last position stands in ``q_present``); 0 = all fresh
     stale: int = 0
+    #: the tick's goal collided (pose or path within the clearance): it was not written, the arm held
+    blocked: bool = False
+    #: metres, the min clearance of the motion written this tick (nan without a collision model)
+    min_clearance: float = math.nan
 
 
 def run_ticks(
@@ -215,6 +227,7 @@ def run_ticks(
     if first > 0:
         raise ValueError(f"Expected the source's first slot <= 0, got {first}")
     recorder = StatsRecorder(rate=config.rate, dry_run=bus is None, first=first, wall0=time.perf_counter())
+    recorder.stats.collision_checked = config.collision is not None
     retries = status.retries if status is not None else 0
     stale = status.stale_reads if status is not None else 0
     reporter = _Reporter(source, recorder, bus, config, on_tick, on_progress, progress_time, retries, stale)
@@ -278,6 +291,8 @@ class _Run:
         self.q_cmd = q_cmd  #: the commanded pose as an array: a new one each tick that moves
         self.target = np.full(3, np.nan)  #: the last target (held ticks report it)
         self.slot = first  #: the running tick's slot
+        self.check = None if config.collision is None else GoalCheck(config.collision, q_cmd)
+        self.blocked = False  #: the running tick's goal was blocked
         self.last_slot = first - 1  #: the slot of the last tick that sent its goals
 
     def run(self, schedule: Schedule, read_back: ReadBack, stop: threading.Event) -> TickStats:
@@ -314,8 +329,12 @@ class _Run:
             skipped = schedule.slot - k - 1
             row = recorder.series.add(error, sweeps, converged, clamped, limited, compute, bus, overrun, skipped)
             target, q_cmd, ended = self.target, self.q_cmd, read_back.ended
+            clearance = math.nan
+            if self.check is not None:
+                clearance = self.check.clearance
+                recorder.series.note_clearance(clearance)
             sent = SentTick(row, k, slot_time, target, q_cmd, error, sweeps, converged, clamped, limited, overrun,
-                            compute, bus, ended)  # fmt: skip
+                            compute, bus, ended, self.blocked, clearance)  # fmt: skip
             read_back.record(sent)  # reported now, or once its read-back is in
 
     def steer(self, k: int, slot_time: float) -> tuple[float, int, bool, bool, bool]:
@@ -323,6 +342,7 @@ class _Run:
         ``target``; returns (IK error m, IK sweeps, converged, clamped, velocity-limited)."""
         goal = self.target_at(k, slot_time)
         limiter = self.limiter
+        self.blocked = False
         if goal is None:  # hold: no IK, the goals stay
             self.recorder.series.holds += 1
             limiter.hold()
@@ -337,6 +357,14 @@ class _Run:
             result = self.solve(self.target, limiter.seed(elapsed), rotation)
             limited = limiter.step(result.q.tolist(), elapsed)
             error, sweeps, converged = result.error, result.iterations, result.converged
+            if result.blocked:  # IK ended at the nearest clear pose: the target needs a colliding one
+                self.recorder.series.ik_blocked += 1
+        if self.check is not None and not self.check.allows(self.q_cmd.tolist(), limiter.q):
+            self.blocked = True  # not written: the arm holds the last goal
+            self.recorder.series.blocked += 1
+            limiter.q = self.q_cmd.tolist()
+            limiter.hold()
+            return error, sweeps, converged, clamped, limited
         self.q_cmd = np.array(limiter.q)
         return error, sweeps, converged, clamped, limited
 
@@ -409,4 +437,6 @@ class _Reporter:
             bus_retries=retries,
             lead_in=slot < 0,
             stale=stale,
+            blocked=done.blocked,
+            min_clearance=done.min_clearance,
         )

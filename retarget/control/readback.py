@@ -49,6 +49,8 @@ class SentTick(NamedTuple):
     compute_time: float  #: real seconds
     bus_time: float  #: real seconds of its own bus calls (pipelined: its read-back's collect comes on top)
     ended: float  #: ``time.perf_counter`` when its bus calls returned
+    blocked: bool = False  #: its goal collided and was not written (the last goal was sent again)
+    min_clearance: float = float("nan")  #: metres, of the motion written (nan without a collision model)
 
 
 #: Reports a tick: ``(tick, present positions (n_joints,) rad or None, seconds its read-back took to collect)``.

@@ -52,6 +52,7 @@ from retarget.arm.model import Arm
 from retarget.control.bus import Bus, connected
 from retarget.control.clock import Clock, MonotonicClock
 from retarget.control.loop import LoopConfig, TickRecord, run_ticks
+from retarget.control.safety import Route, require_route
 from retarget.control.source import JointGoal, TargetSource, TickGoal, TickSolver, TickTarget
 from retarget.control.stats import TickStats
 from retarget.control.summary import RunSummary
@@ -155,14 +156,18 @@ class ControlLoop:
     def _ik(self, max_iterations: int) -> CCDSolver:
         """A CCD solver for these targets with a budget of ``max_iterations`` sweeps per solve."""
         arm, tolerance, mapping = self.arm, self.config.ik_tolerance, self.targets.config
+        collision = self.config.collision
         if self.targets.rotations is None:
-            return CCDSolver(arm, max_iterations=max_iterations, tolerance=tolerance, weights=self._weights)
+            return CCDSolver(
+                arm, max_iterations=max_iterations, tolerance=tolerance, weights=self._weights, collision=collision
+            )
         return CCDSolver(
             arm,
             max_iterations=max_iterations,
             tolerance=tolerance,
             weights=self._weights,
             orientation_weight=mapping.orientation_weight,
+            collision=collision,
         )
 
     def clip_time(self, i: int) -> float:
@@ -234,7 +239,12 @@ class ControlLoop:
     def _summary(self, ticks: TickStats) -> RunSummary:
         """The summary of a run that ended with ``ticks``."""
         played = (ticks.last_slot + 1) * self.config.speed / self.config.rate if ticks.last_slot >= 0 else 0.0
-        return ticks.summary(arm=self.arm.name, clip=self.clip_name, frames=self.frames, duration_s=played)
+        summary = ticks.summary(arm=self.arm.name, clip=self.clip_name, frames=self.frames, duration_s=played)
+        if self.config.collision is None or self.targets.pushed is None:
+            return summary
+        first = int(round(self.window[0] / self.targets.frame_time))
+        pushed = int(np.count_nonzero(self.targets.pushed[first : first + self.frames]))
+        return replace(summary, pushed_targets=pushed)
 
 
 @dataclass(frozen=True)
@@ -307,7 +317,7 @@ class ClipSource(TargetSource):
         self.n_slots = loop.n_slots
         self.looping = loop.config.loop
         self.lead_in_to = lead_in_to
-        self.lead_in: LeadIn | None = None  #: planned by ``start``
+        self.lead_in: LeadIn | Route | None = None  #: planned by ``start``
         self._block0 = self._block1 = 0  # the slots [block0, block1) of a pass whose targets are sampled
         self._positions: npt.NDArray[np.float64] = np.empty((0, 3))  # theirs, (n, 3) m
         self._rotations: npt.NDArray[np.float64] | None = None  # (n, 3, 3), or None: no rotations
@@ -320,7 +330,7 @@ class ClipSource(TargetSource):
         loop, cfg = self.loop, self.loop.config
         speed = np.minimum(cfg.lead_in_speed, cfg.velocity_scale * loop.arm.max_velocity)
         positions, _, _ = loop.sample(0, 1)
-        self.lead_in = LeadIn.plan(q_start, self.lead_in_to, speed=speed, rate=cfg.rate, target=positions[0])
+        self.lead_in = plan_lead_in(loop.arm, cfg, q_start, self.lead_in_to, speed=speed, target=positions[0])
         if cfg.max_ticks is not None and self.lead_in.n_slots > cfg.max_ticks:  # the run stays as long as asked
             log.warning(
                 "lead-in: cut to max_ticks = %d of its %d ticks; the clip starts from where it got to",
@@ -365,6 +375,31 @@ class ClipSource(TargetSource):
         j = i - self._block0
         rotations = self._rotations
         return TickTarget(self._positions[j], None if rotations is None else rotations[j], self._clamped[j])
+
+
+def plan_lead_in(
+    arm: Arm,
+    config: LoopConfig,
+    q_from: npt.NDArray[np.float64],
+    q_to: npt.NDArray[np.float64],
+    *,
+    speed: npt.NDArray[np.float64],
+    target: npt.NDArray[np.float64],
+) -> LeadIn | Route:
+    """The lead-in from ``q_from`` to ``q_to`` (rad): one :class:`LeadIn`, or with ``config.collision`` the legs
+    of its safe route (straight, else through home or rest; ConfigError ``collision`` when there is none)."""
+    if config.collision is None:
+        return LeadIn.plan(q_from, q_to, speed=speed, rate=config.rate, target=target)
+    waypoints = (arm.home, arm.rest)
+    poses = require_route(config.collision, q_from, q_to, waypoints=waypoints, what="lead-in to the clip's first pose")
+    if len(poses) == 1:
+        return LeadIn.plan(q_from, q_to, speed=speed, rate=config.rate, target=target)
+    log.info("lead-in: the straight path collides; going through a safe waypoint")
+    legs, start = [], q_from
+    for pose in poses:
+        legs.append(LeadIn.plan(start, pose, speed=speed, rate=config.rate, target=target))
+        start = pose
+    return Route(tuple(legs))
 
 
 def run_on_bus(loop: ControlLoop, bus: Bus) -> RunSummary:

@@ -8,6 +8,7 @@ counts there (``lead_in_*``).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -35,6 +36,14 @@ class TickSeries:
     holds: int = 0  #: ticks that held the pose (the source had no target; no IK ran)
     overruns: int = 0  #: ticks that ended after the next slot began
     skipped: int = 0  #: slots skipped after those overruns
+    blocked: int = 0  #: ticks whose goal collided and was not written (the arm held); needs a collision model
+    min_clearance: float = math.inf  #: metres, the least clearance of the motion written (inf: not checked)
+    ik_blocked: int = 0  #: ticks whose IK ended short of the target at the nearest clear pose (not converged)
+
+    def note_clearance(self, metres: float) -> None:
+        """A tick wrote a motion whose min clearance is ``metres``."""
+        if metres < self.min_clearance:
+            self.min_clearance = metres
 
     def add(
         self,
@@ -89,6 +98,9 @@ class TickStats(TickSeries):
     lead_in_ticks: int = 0  #: lead-in ticks that ran
     lead_in_time: float = 0.0  #: loop-clock seconds of the lead-in slots that ran (at most ``lead_in_slots / rate``)
     lead_in_wall_time: float = 0.0  #: real seconds the lead-in took
+    lead_in_blocked: int = 0  #: lead-in ticks whose goal was blocked
+    collision_checked: bool = False  #: the goals were checked against a collision model
+    lead_in_min_clearance: float = math.inf  #: metres, the lead-in's least clearance
 
     @property
     def ticks(self) -> int:
@@ -130,6 +142,9 @@ class TickStats(TickSeries):
             late_packets=self.late_packets,
             lead_in_ticks=self.lead_in_ticks,
             lead_in_s=self.lead_in_time,
+            blocked_ticks=self.blocked + self.lead_in_blocked if self.collision_checked else None,
+            ik_blocked_ticks=self.ik_blocked if self.collision_checked else None,
+            min_clearance_m=min(self.min_clearance, self.lead_in_min_clearance) if self.collision_checked else None,
         )
 
 
@@ -183,5 +198,6 @@ class StatsRecorder:
             st.lead_in_slots, st.lead_in_ticks = -first, len(self.lead_in.errors)
             st.lead_in_time = (min(last_slot, -1) - first + 1) / st.rate
             st.lead_in_wall_time = self.wall_clip - self.wall0
+            st.lead_in_blocked, st.lead_in_min_clearance = self.lead_in.blocked, self.lead_in.min_clearance
         st.wall_time = wall1 - self.wall_clip
         return st

@@ -57,6 +57,13 @@ class RunSummary:
     worst_stale_ticks: int = 0  #: the longest run of consecutive stale reads of one servo
     bus_reboots: int = 0  #: servos rebooted and configured again after a hardware error (--recover), whole run
     late_packets: int = 0  #: status packets that came after their read timed out, dropped, whole run
+    #: goals that collided (within the clearance, or on the way from the last goal) and were not written, whole
+    #: run (lead-in included); None: no collision model
+    blocked_ticks: int | None = None
+    min_clearance_mm: float | None = None  #: the least clearance of the motion written, whole run; None: no model
+    #: ticks whose IK stopped short at the nearest clear pose (counted as not converged); None: no model
+    ik_blocked_ticks: int | None = None
+    pushed_targets: int | None = None  #: clip frames whose target was pushed out of a blocked zone; None: no model
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dict (floats rounded to 4 decimals)."""
@@ -82,6 +89,13 @@ class RunSummary:
         if self.bus_reboots or self.late_packets:
             stale.append(
                 f"  servo reboots (recovery): {self.bus_reboots}; late status packets dropped: {self.late_packets}"
+            )
+        if self.blocked_ticks is not None:
+            clearance = "" if self.min_clearance_mm is None else f", min clearance {self.min_clearance_mm:.1f} mm"
+            pushed = "" if self.pushed_targets is None else f"; {self.pushed_targets} targets pushed out of them"
+            stale.append(
+                f"  collisions: {self.blocked_ticks} blocked goals (not sent), {self.ik_blocked_ticks} ticks with IK "
+                f"stopped short by them{clearance}{pushed}"
             )
         return "\n".join(
             [
@@ -135,10 +149,15 @@ def summarize(
     worst_stale_ticks: int = 0,
     bus_reboots: int = 0,
     late_packets: int = 0,
+    blocked_ticks: int | None = None,
+    min_clearance_m: float | None = None,
+    ik_blocked_ticks: int | None = None,
 ) -> RunSummary:
     """A :class:`RunSummary` from per-tick arrays ``(n_ticks,)`` (errors metres, times seconds).
 
     The arrays and counters are the clip's; ``lead_in_ticks``/``lead_in_s`` describe the lead-in before it.
+    ``blocked_ticks``, ``min_clearance_m`` (metres; ``inf``: nothing was checked): the collision checks, None
+    without a collision model.
     """
     err_mm = np.asarray(ik_error_m, dtype=np.float64) * 1e3
     tick_ms = (np.asarray(compute_s) + np.asarray(bus_s)) * 1e3
@@ -182,4 +201,9 @@ def summarize(
         worst_stale_ticks=int(worst_stale_ticks),
         bus_reboots=int(bus_reboots),
         late_packets=int(late_packets),
+        blocked_ticks=None if blocked_ticks is None else int(blocked_ticks),
+        ik_blocked_ticks=None if ik_blocked_ticks is None else int(ik_blocked_ticks),
+        min_clearance_mm=(
+            None if min_clearance_m is None or not np.isfinite(min_clearance_m) else float(min_clearance_m) * 1e3
+        ),
     )

@@ -6,13 +6,15 @@ times seconds or milliseconds; flags 0/1)::
     time_s, clip_time_s, tick, target_x_m, target_y_m, target_z_m,
     <joint>_cmd_rad ...,  <joint>_present_rad ...,
     ik_error_mm, ik_sweeps, ik_converged, tick_ms, compute_ms, bus_ms,
-    clamped, velocity_limited, overrun, bus_retries, lead_in, stale
+    clamped, velocity_limited, overrun, bus_retries, lead_in, stale, blocked, min_clearance_mm
 
 ``<joint>_present_rad`` is empty in a dry run (no bus, nothing was read).  ``lead_in`` is 1 on
 the rows of the lead-in to the clip's first pose that a replay on a bus runs before the clip
 (their ``time_s`` and ``tick`` are negative, ``clip_time_s`` is the clip's start, no IK ran:
 ``ik_sweeps`` 0, and the target is the clip's first).  ``stale`` counts the servos whose read-back missed
 that tick after the bus's retries (0: every reading is fresh); their ``_present_rad`` is the last one read.
+``blocked`` is 1 when the tick's goal collided and was not written (the arm held the last goal);
+``min_clearance_mm`` is the least clearance of the motion written that tick (empty without a collision model).
 
     with TelemetryWriter("run.csv", arm.joint_names) as telemetry:
         ControlLoop(arm, targets, on_tick=telemetry).run(bus)
@@ -20,6 +22,7 @@ that tick after the bus's retries (0: every reading is fresh); their ``_present_
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Sequence
 from typing import IO
@@ -28,7 +31,8 @@ from retarget.control.loop import TickRecord
 
 __all__ = ["TelemetryWriter", "telemetry_columns"]
 
-FLAG_COLUMNS = ("clamped", "velocity_limited", "overrun", "bus_retries", "lead_in", "stale")
+FLAG_COLUMNS = ("clamped", "velocity_limited", "overrun", "bus_retries", "lead_in", "stale", "blocked",
+                "min_clearance_mm")  # fmt: skip
 
 
 def telemetry_columns(joint_names: Sequence[str]) -> list[str]:
@@ -109,11 +113,13 @@ class TelemetryWriter:
         target = ",".join(f"{v:.6f}" for v in r.target)
         cmd = ",".join(f"{v:.6f}" for v in r.q_cmd)
         present = self._blank if r.q_present is None else ",".join(f"{v:.6f}" for v in r.q_present)
+        clearance = "" if math.isnan(r.min_clearance) else f"{r.min_clearance * 1e3:.3f}"
         self._file.write(
             f"{r.time:.6f},{r.clip_time:.6f},{r.tick},{target},{cmd},{present},"
             f"{r.ik_error * 1e3:.4f},{r.ik_sweeps},{int(r.ik_converged)},"
             f"{(r.compute_time + r.bus_time) * 1e3:.4f},{r.compute_time * 1e3:.4f},{r.bus_time * 1e3:.4f},"
-            f"{int(r.clamped)},{int(r.velocity_limited)},{int(r.overrun)},{r.bus_retries},{int(r.lead_in)},{r.stale}\n"
+            f"{int(r.clamped)},{int(r.velocity_limited)},{int(r.overrun)},{r.bus_retries},{int(r.lead_in)},{r.stale},"
+            f"{int(r.blocked)},{clearance}\n"
         )
         self._file.flush()
         self.rows += 1

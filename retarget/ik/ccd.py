@@ -51,13 +51,17 @@ import enum
 import math
 import random
 from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import TypeAlias
+from typing import TYPE_CHECKING, TypeAlias
 
 import numpy as np
 
 from retarget.arm.model import Arm
 from retarget.errors import ConfigError, require_count, require_positive
+from retarget.ik.collide import CollisionGuard
+from retarget.ik.result import IKResult
+
+if TYPE_CHECKING:
+    from retarget.collision import CollisionModel
 
 __all__ = ["IKResult", "CCDSolver", "SweepOrder", "Weighting", "solve_ik", "joint_weights"]
 
@@ -132,26 +136,6 @@ class SweepOrder(enum.Enum):
     TIP_FIRST = "tip-first"
 
 
-@dataclass(frozen=True, eq=False)
-class IKResult:
-    """The outcome of one solve.
-
-    ``q``: ``(n_joints,)`` float64 radians, always inside the limits;
-    ``error``: distance tool point -> target, metres;
-    ``iterations``: sweeps run (0 when the start was already within tolerance);
-    ``converged``: ``error <= tolerance`` (and, with a rotation target, ``orientation_error <=
-    orientation_tolerance``); ``orientation_error``: radians, ``nan`` without a rotation target;
-    ``restarts``: seeds tried after stalls.
-    """
-
-    q: np.ndarray
-    error: float
-    iterations: int
-    converged: bool
-    orientation_error: float = math.nan
-    restarts: int = 0
-
-
 def _principal(axis: tuple[float, float, float]) -> tuple[int, float]:
     """(0|1|2, sign) when ``axis`` is +-x, +-y or +-z, else (-1, 1)."""
     for k in range(3):
@@ -186,7 +170,10 @@ class CCDSolver:
       lever ``|u⊥|`` is shorter takes ``(|u⊥| / short_lever)^2`` of its update; 0 turns it off;
     - ``max_step``: radians, a trust region: no joint moves more than this from ``q0`` in one
       solve (default None: only the limits).  A control loop may pass its per-tick velocity
-      limit here so that the solution is reachable within the tick.
+      limit here so that the solution is reachable within the tick;
+    - ``collision``: a :class:`~retarget.collision.CollisionModel`: no result comes closer than its
+      clearance to a collision (:mod:`~retarget.ik.collide`; ``IKResult.blocked`` when the target
+      cannot be reached clear); None (default): no check.
 
     A solver keeps scratch buffers: use one per thread.
     """
@@ -210,6 +197,7 @@ class CCDSolver:
         max_step: float | None = None,
         short_lever: float | None = None,
         order: SweepOrder | str = SweepOrder.BASE_FIRST,
+        collision: CollisionModel | None = None,
     ):
         self.arm = arm
         n = self.n = arm.n_joints
@@ -263,6 +251,9 @@ class CCDSolver:
         self._ax = [0.0] * n
         self._ay = [0.0] * n
         self._az = [0.0] * n
+        #: the collision model every result is verified against (None: none, no cost)
+        self.collision = collision
+        self._guard = None if collision is None else CollisionGuard(self, collision)
 
     # ---------------------------------------------------------------------------------------------------------------
     def _fk(self, q: list[float]) -> _ToolPose:
@@ -370,6 +361,35 @@ class CCDSolver:
         ...
         ValueError: Expected target of shape (3,), got (2,)
         """
+        guard = self._guard
+        if guard is None:
+            return self._solve_free(target, q0, rotation, tolerance=tolerance, max_iterations=max_iterations,
+                                    max_step=max_step)  # fmt: skip
+        result = self._solve_free(target, q0, rotation, tolerance=tolerance, max_iterations=max_iterations,
+                                  max_step=max_step)  # fmt: skip
+        clear, m = guard.check(result.q)
+        if clear:
+            return IKResult(result.q, result.error, result.iterations, result.converged, result.orientation_error,
+                            result.restarts, clearance=m)  # fmt: skip
+        lower, upper = self._lo, self._hi
+        seed = [lo if v < lo else hi if v > hi else v for v, lo, hi in zip(_joint_vector(q0, self.n), lower, upper,
+                                                                           strict=True)]  # fmt: skip
+        tol = self.tolerance if tolerance is None else float(tolerance)
+        budget = self.max_iterations if max_iterations is None else int(max_iterations)
+        rows = None if rotation is None else _rotation(rotation)
+        return guard.resolve(_vec3(target, "target"), seed, rows, tol, max(budget, 1))
+
+    def _solve_free(
+        self,
+        target: Sequence[float] | np.ndarray,
+        q0: Sequence[float] | np.ndarray,
+        rotation: np.ndarray | None = None,
+        *,
+        tolerance: float | None = None,
+        max_iterations: int | None = None,
+        max_step: float | None | object = _DEFAULT,
+    ) -> IKResult:
+        """:meth:`solve` without the collision check."""
         n = self.n
         tx, ty, tz = _vec3(target, "target")
         q = _joint_vector(q0, n)

@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -53,6 +54,9 @@ from retarget.errors import BvhError
 from retarget.mapping.body import clip_body_frames, fixed_frame
 from retarget.mapping.config import Axis, MappingConfig
 from retarget.mapping.workspace import Workspace, arm_geometry, default_origin
+
+if TYPE_CHECKING:
+    from retarget.collision import CollisionModel
 
 __all__ = ["Targets", "map_points", "retarget_targets"]
 
@@ -92,6 +96,9 @@ class Targets:
     workspace: Workspace
     config: MappingConfig
     scale: float  #: metres per BVH file unit
+    #: ``(n_frames,)`` bool, the frame's target was pushed out of a blocked zone (counted in ``clamped`` too);
+    #: all False without a collision model (``workspace.blocked``)
+    pushed: np.ndarray | None = None
 
     @classmethod
     def from_raw(
@@ -111,6 +118,9 @@ class Targets:
         if not (np.isfinite(frame_time) and frame_time > 0):
             raise ValueError(f"Expected a frame time > 0 s, got {frame_time}")
         positions, clamped = workspace.clamp(raw)
+        pushed = np.zeros(clamped.shape, dtype=bool)
+        if workspace.blocked is not None:  # which of them were (also) pushed out of a blocked zone
+            _, pushed = workspace.push(workspace.with_blocked(None).clamp(raw)[0])
         return cls(
             positions=positions,
             raw=raw,
@@ -120,6 +130,7 @@ class Targets:
             workspace=workspace,
             config=config or MappingConfig(),
             scale=scale,
+            pushed=pushed,
         )
 
     @property
@@ -129,6 +140,11 @@ class Targets:
     @property
     def n_clamped(self) -> int:
         return int(np.count_nonzero(self.clamped))
+
+    @property
+    def n_pushed(self) -> int:
+        """Frames whose target was pushed out of a blocked zone."""
+        return 0 if self.pushed is None else int(np.count_nonzero(self.pushed))
 
     def sample(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
         """Targets at clip ``times`` ``(n,)`` seconds by linear interpolation of the raw targets, then clamped.
@@ -178,7 +194,9 @@ def _orthonormalize(m: np.ndarray) -> np.ndarray:
     return np.stack([x, np.cross(z, x), z], axis=-1)
 
 
-def retarget_targets(motion: Motion, arm: Arm, config: MappingConfig | None = None) -> Targets:
+def retarget_targets(
+    motion: Motion, arm: Arm, config: MappingConfig | None = None, *, collision: CollisionModel | None = None
+) -> Targets:
     """Tool-point targets for every frame of ``motion`` on ``arm``: the steps in the module docstring.
 
     ``motion``: the clip, in any length unit (the scale comes from its own arm length).  ``arm``: the
@@ -189,6 +207,8 @@ def retarget_targets(motion: Motion, arm: Arm, config: MappingConfig | None = No
     inside the :class:`~retarget.mapping.workspace.Workspace`; ``raw`` the same before the workspace clamp; ``clamped``
     ``(n_frames,)`` bool; ``rotations`` ``(n_frames, 3, 3)`` tool orientations in the base frame when
     ``config.orientation_weight > 0``, else None; ``frame_time`` seconds; ``scale`` metres per file unit.
+    ``collision``: a collision model whose blocked zones (below the table, keep-outs, the base) the targets are
+    pushed out of as well (``pushed``, counted in ``clamped`` too).
 
     With ``config.forward`` AUTO the body frames come from :func:`~retarget.mapping.body.clip_body_frames`:
     from both shoulders, else (one arm, or shoulders that coincide) from the spine and hips, else the
@@ -235,7 +255,7 @@ def retarget_targets(motion: Motion, arm: Arm, config: MappingConfig | None = No
     return Targets.from_raw(
         raw,
         frame_time=float(motion.frame_time),
-        workspace=Workspace.for_arm(arm, config),
+        workspace=Workspace.for_arm(arm, config).with_blocked(collision),
         config=config,
         rotations=rotations,
         scale=scale,

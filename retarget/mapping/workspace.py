@@ -4,7 +4,9 @@
   direction of an :class:`~retarget.arm.model.Arm`, from one FK call; :func:`default_origin`, where the
   human shoulder lands by default;
 - :class:`Workspace`: the shell around the pivot, above the floor, that targets are pulled into
-  (:meth:`Workspace.clamp`, vectorised, and :meth:`Workspace.clamp_point` for one point);
+  (:meth:`Workspace.clamp`, vectorised, and :meth:`Workspace.clamp_point` for one point); with a collision
+  model (``blocked``), targets are also pushed out of its blocked zones (below the table, inside a keep-out
+  zone or the base: ``CollisionModel.push_out``);
 - :func:`ik_weights`: per-joint CCD weights for following the mapping's targets (:data:`ROLL_WEIGHT`,
   :data:`WRIST_WEIGHT`).
 
@@ -14,7 +16,8 @@ Metres and radians, the arm's base frame.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -22,6 +25,9 @@ from retarget.arm.kinematics import axis_angle_matrix, rpy_matrix
 from retarget.arm.model import Arm
 from retarget.errors import ConfigError
 from retarget.mapping.config import Axis, MappingConfig
+
+if TYPE_CHECKING:
+    from retarget.collision import CollisionModel
 
 __all__ = [
     "ArmGeometry",
@@ -166,12 +172,48 @@ def _joint_rotations(arm: Arm, q: np.ndarray) -> list[np.ndarray]:
 
 @dataclass(frozen=True)
 class Workspace:
-    """The reachable region targets are pulled into: ``r_min <= |p - center| <= r_max`` and ``z >= floor``."""
+    """The reachable region targets are pulled into: ``r_min <= |p - center| <= r_max`` and ``z >= floor``, and
+    out of ``blocked``'s zones (its clearance away from the table, the keep-out zones and the base)."""
 
     center: np.ndarray  #: ``(3,)`` metres, base frame (the shoulder pivot)
     r_min: float
     r_max: float
     floor: float
+    blocked: CollisionModel | None = field(default=None, compare=False)  #: None: no blocked zones
+
+    def with_blocked(self, model: CollisionModel | None) -> Workspace:
+        """This workspace with ``model``'s blocked zones (None: none)."""
+        return replace(self, blocked=model)
+
+    def push(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``points`` ``(..., 3)`` metres pushed out of the blocked zones: ``(points (..., 3), pushed (...) bool)``;
+        unchanged without a model.
+
+        A point's margin (its signed distance to the zones) changes by at most as much as the point moves, so
+        along a clip's targets most points need no query: one within ``margin - clearance`` of the last point
+        queried is clear."""
+        p = np.array(points, dtype=np.float64)
+        pushed = np.zeros(p.shape[:-1], dtype=bool)
+        model = self.blocked
+        if model is None:
+            return p, pushed
+        flat, flags = p.reshape(-1, 3), pushed.reshape(-1)
+        clearance = model.clearance
+        rows = flat.tolist()
+        rx = ry = rz = 0.0
+        slack = -math.inf  # margin - clearance of the last point queried (rx, ry, rz)
+        for i, (x, y, z) in enumerate(rows):
+            dx, dy, dz = x - rx, y - ry, z - rz
+            if slack * slack > dx * dx + dy * dy + dz * dz and slack > 0:
+                continue
+            margin = model.point_margin(flat[i])
+            if margin < clearance:
+                flat[i] = model.push_out(flat[i])
+                flags[i] = True
+                slack = -math.inf
+            else:
+                rx, ry, rz, slack = x, y, z, margin - clearance
+        return p, pushed
 
     @classmethod
     def for_arm(cls, arm: Arm, config: MappingConfig | None = None) -> Workspace:
@@ -211,7 +253,11 @@ class Workspace:
             d[..., :2] = np.where(low[..., None], hdir * hn2[..., None], d[..., :2])
             d[..., 2] = np.where(low, dz, d[..., 2])
         moved = (r < self.r_min) | (r > self.r_max) | low
-        return np.where(moved[..., None], d + self.center, p), moved
+        out = np.where(moved[..., None], d + self.center, p)
+        if self.blocked is not None:
+            out, pushed = self.push(out)
+            moved = moved | pushed
+        return out, moved
 
     def clamp_point(self, x: float, y: float, z: float) -> tuple[float, float, float, bool]:
         """:meth:`clamp` of one point in plain floats (~20x faster than numpy for a single point)."""
@@ -219,6 +265,9 @@ class Workspace:
         dx, dy, dz = x - cx, y - cy, z - cz
         r = math.sqrt(dx * dx + dy * dy + dz * dz)
         if self.r_min <= r <= self.r_max and z >= self.floor:
+            if self.blocked is not None and self.blocked.point_blocked((x, y, z)):
+                px, py, pz = self.blocked.push_out((x, y, z)).tolist()
+                return px, py, pz, True
             return x, y, z, False
         radius = min(max(r, self.r_min), self.r_max)
         if r > 1e-12:
@@ -235,4 +284,7 @@ class Workspace:
             hi = math.sqrt(max(self.r_max**2 - fz**2, 0.0))
             hn = min(max(hn, lo), hi)
             dx, dy, dz = ux * hn, uy * hn, fz
-        return dx + cx, dy + cy, dz + cz, True
+        x, y, z = dx + cx, dy + cy, dz + cz
+        if self.blocked is not None and self.blocked.point_blocked((x, y, z)):
+            x, y, z = self.blocked.push_out((x, y, z)).tolist()
+        return x, y, z, True

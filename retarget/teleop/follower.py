@@ -87,6 +87,11 @@ class Visit:
     orientation_error: float = math.nan  #: radians, commanded tool frame to ``rotation`` when it was left
 
 
+def _aim(goal: Target) -> npt.NDArray[np.float64]:
+    """Where the follower steers for ``goal``: its nearest safe point when it is blocked, else itself."""
+    return goal.position if goal.aim is None else goal.aim
+
+
 def tool_point(arm: Arm, q: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
     """The tool point ``(3,)`` metres, base frame, of joint angles ``q`` ``(n_joints,)`` radians."""
     T, _ = arm.fk(q)
@@ -271,7 +276,7 @@ class Follower(TargetSource):
         # one slot's step per moving tick, whatever slots passed since the last one: after a hold, a stale
         # stream or a wait, that gap is time spent standing, and after an overrun the loop's joint limit is one
         # slot too, so a longer step would only let the setpoint (and the IK) run ahead of the speed limit
-        self.setpoint = step_toward(self.setpoint, self.goal.position, self._step)
+        self.setpoint = step_toward(self.setpoint, _aim(self.goal), self._step)
         return TickTarget(self.setpoint, self.goal.rotation, False)
 
     def observe(
@@ -281,21 +286,25 @@ class Follower(TargetSource):
         T, _ = self.arm.fk(q_cmd)
         self.tool, self.tool_rotation = tool, rotation = T[:3, 3].copy(), T[:3, :3].copy()
         goal, setpoint = self.goal, self.setpoint
-        if goal is None or setpoint is None or not np.array_equal(setpoint, goal.position):
+        if goal is None or setpoint is None or not np.array_equal(setpoint, aim := _aim(goal)):
             return  # holding, or the setpoint is still on its way
-        d = float(np.linalg.norm(tool - goal.position))
+        d = float(np.linalg.norm(tool - aim))
         angle = 0.0 if goal.rotation is None else rotation_angle(rotation, goal.rotation)
         radius = self.pass_radius if self._queue else self.tolerance
         cost = d + ORIENTATION_SCALE * angle
         if d <= radius and angle <= self.orientation_tolerance:
-            self._leave(True, tick, d)
+            if goal.aim is not None:  # at the nearest safe point of a blocked target: given up there
+                log.info("target %d is blocked: holding at the nearest safe point", goal.seq)
+                self._leave(False, tick)
+            else:
+                self._leave(True, tick, d)
         elif cost < self._best - self.stall_distance:
             self._best, self._since_best = cost, 0
         elif (since := self._since_best + 1) < self.stall_ticks:  # ticks, not slots: a bus stall is no stalled arm
             self._since_best = since
         else:
             log.info("target %d unreachable: holding %.1f mm, %.1f deg from it", goal.seq, d * 1e3, math.degrees(angle))
-            self._leave(False, tick, d)
+            self._leave(False, tick)
 
     def cancel(self) -> None:
         """Stop steering (the user quit): drop the queue and the current target; the loop holds from the next
@@ -396,16 +405,21 @@ class TeleopResult:
 class PoseSolver:
     """Two :class:`~retarget.ik.CCDSolver` s behind one ``solve`` (a :class:`~retarget.control.source.TickSolver`):
     targets without a rotation use the mapping's position-only per-joint weights (roll joints held), targets
-    with one use every joint and an orientation weight.  Budget and tolerance from the loop config."""
+    with one use every joint and an orientation weight.  Budget, tolerance and collision model from the loop
+    config."""
 
     def __init__(self, arm: Arm, config: LoopConfig, *, orientation_weight: float = 0.1):
         mapping = MappingConfig.from_table(arm.mapping, path=arm.source)
         iterations, tolerance = config.ik_iterations, config.ik_tolerance
         weights = ik_weights(arm, mapping)
-        self.position = CCDSolver(arm, weights=weights, max_iterations=iterations, tolerance=tolerance)
-        self.pose = CCDSolver(
-            arm, orientation_weight=orientation_weight, max_iterations=iterations, tolerance=tolerance
+        collision = config.collision
+        self.position = CCDSolver(
+            arm, weights=weights, max_iterations=iterations, tolerance=tolerance, collision=collision
         )
+        self.pose = CCDSolver(
+            arm, orientation_weight=orientation_weight, max_iterations=iterations, tolerance=tolerance,
+            collision=collision,
+        )  # fmt: skip
 
     def solve(
         self,

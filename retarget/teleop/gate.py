@@ -12,9 +12,10 @@ degrees (the edge of the program; radians inside).  Blank lines and ``#`` commen
 Every message runs the same gate, in this order, and a failure rejects it with a :class:`Reject` reason
 that is counted (:class:`RejectCounter`) and logged as a warning (rate-limited): ``OVERSIZE`` (over
 ``max_bytes``), ``MALFORMED`` (not a message of the forms above, not UTF-8), ``NON_FINITE`` (NaN, inf,
-overflow), ``OUT_OF_BOX`` (outside the :class:`TargetBounds` box) and ``OUT_OF_REACH`` (farther from the
-shoulder pivot than the arm's reach + margin).  A rejected message never becomes a target, so it never
-moves the arm.
+overflow), ``OUT_OF_BOX`` (outside the :class:`TargetBounds` box), ``OUT_OF_REACH`` (farther from the
+shoulder pivot than the arm's reach + margin) and ``BLOCKED`` (with a collision model: closer than its clearance
+to a blocked zone, i.e. below the table, inside a keep-out zone or inside the base).  A rejected message never
+becomes a target, so it never moves the arm.
 
 An accepted message becomes a :class:`Target` stamped with its receive time on the *loop's* clock.
 The sources the messages arrive from (stdin, UDP, one shot) are in :mod:`retarget.teleop.sources`;
@@ -34,6 +35,7 @@ import re
 import threading
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -43,6 +45,9 @@ from retarget.arm.model import Arm
 from retarget.control.clock import Clock
 from retarget.errors import ConfigError
 from retarget.mapping.workspace import arm_geometry
+
+if TYPE_CHECKING:
+    from retarget.collision import CollisionModel
 
 __all__ = [
     "BasePose",
@@ -72,6 +77,7 @@ class Reject(enum.Enum):
     NON_FINITE = "non_finite"
     OUT_OF_BOX = "out_of_box"
     OUT_OF_REACH = "out_of_reach"
+    BLOCKED = "blocked"  #: below the table, inside a keep-out zone or the base (a collision model's blocked zones)
 
 
 class TargetRejected(ConfigError):
@@ -225,17 +231,26 @@ class TargetBounds:
     upper: npt.NDArray[np.float64]  #: ``(3,)`` box corner
     center: npt.NDArray[np.float64]  #: ``(3,)`` the shoulder pivot
     max_radius: float  #: the arm's reach from the pivot + margin
+    #: blocked zones (below the table, keep-outs, the base): a point closer than its clearance is ``BLOCKED``
+    collision: CollisionModel | None = field(default=None, compare=False)
 
     @classmethod
     def for_arm(
-        cls, arm: Arm, *, margin: float = 0.2, box: Sequence[float] | None = None, floor: float = 0.0
+        cls,
+        arm: Arm,
+        *,
+        margin: float = 0.2,
+        box: Sequence[float] | None = None,
+        floor: float = 0.0,
+        collision: CollisionModel | None = None,
     ) -> TargetBounds:
         """Bounds of ``arm``: reach + ``margin`` metres around its shoulder pivot, and a box.
 
         ``box`` is ``(xmin, ymin, zmin, xmax, ymax, zmax)`` metres; by default the cube around the
         reach sphere, cut at ``z = floor`` (the base's mounting plane: no target below the table).
         Targets between the reach and reach + margin are accepted: the arm goes to the nearest
-        point it can reach and reports the residual.
+        point it can reach and reports the residual.  ``collision``: a model whose blocked zones reject
+        targets too (:meth:`check`).
         """
         if not (math.isfinite(margin) and margin >= 0):
             raise ConfigError("Expected a margin >= 0 m", key="margin", value=margin)
@@ -252,10 +267,11 @@ class TargetBounds:
             lower, upper = values[:3], values[3:]
             if not np.all(lower < upper):
                 raise ConfigError("Expected each minimum below its maximum", key="box", value=list(values))
-        return cls(lower=lower, upper=upper, center=g.pivot.copy(), max_radius=float(radius))
+        return cls(lower=lower, upper=upper, center=g.pivot.copy(), max_radius=float(radius), collision=collision)
 
-    def check(self, position: npt.NDArray[np.float64], *, key: str = "target") -> None:
-        """Raise :class:`TargetRejected` (``OUT_OF_BOX``/``OUT_OF_REACH``) unless ``position`` ``(3,)`` is allowed."""
+    def check(self, position: npt.NDArray[np.float64], *, key: str = "target", blocked: bool = True) -> None:
+        """Raise :class:`TargetRejected` (``OUT_OF_BOX``/``OUT_OF_REACH``/``BLOCKED``) unless ``position`` ``(3,)``
+        is allowed (``blocked=False``: the blocked zones are not checked)."""
         p = np.asarray(position, dtype=np.float64)
         if not (np.all(p >= self.lower) and np.all(p <= self.upper)):
             lo = ",".join(f"{v:g}" for v in self.lower)
@@ -266,6 +282,16 @@ class TargetBounds:
         if r > self.max_radius:
             raise TargetRejected(Reject.OUT_OF_REACH, f"Expected a point within {self.max_radius:.3f} m of the "
                                  f"shoulder (reach + margin), got {r:.3f} m", key=key, value=_fmt(p))  # fmt: skip
+        if blocked and self.is_blocked(p):
+            assert self.collision is not None
+            margin = self.collision.point_margin(p)
+            raise TargetRejected(Reject.BLOCKED, f"Expected a point {self.collision.clearance * 1e3:g} mm clear of the "
+                                 f"table, the keep-out zones and the base, got {margin * 1e3:.1f} mm", key=key,
+                                 value=_fmt(p))  # fmt: skip
+
+    def is_blocked(self, position: npt.NDArray[np.float64]) -> bool:
+        """True when a collision model is set and ``position`` ``(3,)`` m is within its clearance of a blocked zone."""
+        return self.collision is not None and bool(self.collision.point_blocked(position))
 
 
 def _fmt(p: npt.NDArray[np.float64]) -> str:
@@ -284,6 +310,9 @@ class Target:
     rotation: npt.NDArray[np.float64] | None
     received: float
     seq: int
+    #: ``(3,)`` where the arm steers instead, when ``position`` is in a blocked zone (the nearest safe point; a
+    #: one-shot target only: a stream's blocked targets are rejected); None: ``position`` itself
+    aim: npt.NDArray[np.float64] | None = None
 
 
 class RejectCounter:
@@ -345,14 +374,15 @@ class TargetGate:
         self._lock = threading.Lock()
 
     def convert(
-        self, message: Message, *, key: str = "target"
+        self, message: Message, *, key: str = "target", blocked: bool = True
     ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64] | None]:
-        """A parsed message -> ``(position (3,), rotation (3, 3) | None)`` in the base frame, bound-checked."""
+        """A parsed message -> ``(position (3,), rotation (3, 3) | None)`` in the base frame, bound-checked
+        (``blocked=False``: the blocked zones are left to the caller)."""
         rotation = None if message.rpy is None else rpy_matrix(message.rpy.tolist())
         position = message.position
         if self.frame_pose is not None:
             position, rotation = self.frame_pose.to_base(position, rotation)
-        self.bounds.check(position, key=key)
+        self.bounds.check(position, key=key, blocked=blocked)
         return position, rotation
 
     def accept(self, data: str | bytes, *, source: str = "") -> Target | None:

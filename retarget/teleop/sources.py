@@ -23,6 +23,8 @@ import threading
 from collections.abc import Callable
 from typing import IO, Self
 
+import numpy as np
+
 from retarget.errors import ConfigError
 from retarget.teleop.gate import MAX_RPY_DEG, Message, Reject, Target, TargetGate, TargetRejected, parse_message
 
@@ -164,9 +166,15 @@ class OneShotSource(Source):
                 message_text = f"Expected R,P,Y from {-MAX_RPY_DEG:g} to {MAX_RPY_DEG:g} degrees"
                 raise TargetRejected(Reject.MALFORMED, message_text, key="rpy", value=rpy)
             message = Message(message.position, angles.position * (math.pi / 180.0))
-        position_m, rotation = gate.convert(message, key="position")
+        position_m, rotation = gate.convert(message, key="position", blocked=False)
+        aim = None
+        if gate.bounds.is_blocked(position_m):  # counted, and steered to the nearest safe point: never reached
+            assert gate.bounds.collision is not None
+            aim = np.asarray(gate.bounds.collision.push_out(position_m), dtype=np.float64)
+            gate.reject(Reject.BLOCKED, "Expected a point clear of the table, the keep-out zones and the base; "
+                        "going to the nearest safe point", source=self.name, value=position)  # fmt: skip
         gate.accepted += 1
-        self._push(Target(position_m, rotation, gate.clock.now(), 0))
+        self._push(Target(position_m, rotation, gate.clock.now(), 0, aim))
         self._finish()
 
 

@@ -46,10 +46,11 @@ def test_columns_name_the_joints_and_units(arm):
     cols = telemetry_columns(arm.joint_names)
     assert cols[:6] == ["time_s", "clip_time_s", "tick", "target_x_m", "target_y_m", "target_z_m"]
     assert "waist_cmd_rad" in cols and "wrist_rotate_present_rad" in cols
-    assert cols[-6:-2] == ["clamped", "velocity_limited", "overrun", "bus_retries"]
-    assert cols[-2] == "lead_in"  # the flag of the lead-in's rows
-    assert cols[-1] == "stale"  # the servos whose read-back missed, last (added after lead_in)
-    assert len(cols) == len(set(cols)) == 6 + 2 * arm.n_joints + 12
+    assert cols[-8:-4] == ["clamped", "velocity_limited", "overrun", "bus_retries"]
+    assert cols[-4] == "lead_in"  # the flag of the lead-in's rows
+    assert cols[-3] == "stale"  # the servos whose read-back missed (added after lead_in)
+    assert cols[-2:] == ["blocked", "min_clearance_mm"]  # the collision check, last
+    assert len(cols) == len(set(cols)) == 6 + 2 * arm.n_joints + 14
 
 
 @pytest.mark.parametrize("present", [True, False], ids=["bus", "dry-run"])
@@ -74,6 +75,7 @@ def test_row_values(arm, present):
     assert float(row["bus_ms"]) == pytest.approx(0.8)
     assert (row["clamped"], row["velocity_limited"], row["overrun"], row["bus_retries"]) == ("1", "0", "1", "2")
     assert row["lead_in"] == "0" and row["stale"] == "0"
+    assert row["blocked"] == "0" and row["min_clearance_mm"] == ""  # no collision model: no clearance
     assert not out.closed  # a stream given by the caller stays open
 
 

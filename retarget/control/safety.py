@@ -1,0 +1,164 @@
+"""Collision safety of the commanded motion: each tick's goal, and the joint-space moves planned around the run.
+
+- :class:`GoalCheck`: the tick loop's last word before a write.  The commanded pose and the straight
+  joint-space segment from the last command to it must keep the model's clearance
+  (``CollisionModel.segment_clear``); a goal that fails is not written (the arm holds) and the tick is
+  counted ``blocked``.
+- :func:`plan_route`: the waypoints of a joint-space move (the lead-in to a clip's first pose, the move to
+  rest at shutdown): straight when that segment is clear, else through the first clear safe waypoint (home,
+  then rest), else None: the caller refuses the move.
+
+Joint angles ``(n_joints,)`` float64 radians in ``Arm.joint_names`` order; clearances metres.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Protocol
+
+import numpy as np
+import numpy.typing as npt
+
+from retarget.control.source import JointGoal
+from retarget.errors import ConfigError
+from retarget.ik.collide import shared_bound
+
+if TYPE_CHECKING:
+    from retarget.collision import CollisionModel
+
+__all__ = ["GoalCheck", "Leg", "Route", "plan_route", "require_route"]
+
+
+class Leg(Protocol):
+    """One straight joint-space move of a :class:`Route` (``retarget.control.replay.LeadIn`` is one)."""
+
+    @property
+    def n_slots(self) -> int: ...
+
+    def goal(self, slot: int) -> JointGoal: ...
+
+    def truncated(self, n_slots: int) -> Leg: ...
+
+
+@dataclass(frozen=True)
+class Route:
+    """Straight joint-space legs run one after the other, over slots ``-n_slots .. -1`` (each leg's own slots
+    ``-leg.n_slots .. -1`` in turn): a lead-in through a safe waypoint.  Same interface as one leg."""
+
+    legs: tuple[Leg, ...]
+
+    @property
+    def n_slots(self) -> int:
+        return sum(leg.n_slots for leg in self.legs)
+
+    def goal(self, slot: int) -> JointGoal:
+        """The goal of slot ``slot`` (``-n_slots <= slot < 0``)."""
+        i = slot + self.n_slots  # 0-based index into the whole route
+        for leg in self.legs:
+            if i < leg.n_slots:
+                return leg.goal(i - leg.n_slots)
+            i -= leg.n_slots
+        return self.legs[-1].goal(-1)
+
+    def truncated(self, n_slots: int) -> Route:
+        """Only the first ``n_slots`` slots of the route."""
+        legs: list[Leg] = []
+        for leg in self.legs:
+            if n_slots <= 0:
+                break
+            legs.append(leg.truncated(n_slots))
+            n_slots -= leg.n_slots
+        return Route(tuple(legs))
+
+
+class GoalCheck:
+    """Checks each tick's goal against ``model`` (see the module docstring), starting from the pose ``q_start``
+    (rad); ``clearance`` is the min clearance (metres) of the last segment written, or a lower bound of it (at
+    first: of ``q_start``).  Most ticks need no query or one of a single pose: the segment's clearance is bounded
+    from its ends' (:class:`~retarget.ik.collide.ClearanceBound`); only near a contact is it sampled
+    (``CollisionModel.segment_clear``)."""
+
+    __slots__ = ("model", "clearance", "bound", "_segment_clear", "_limit", "_at_cmd")
+
+    def __init__(self, model: CollisionModel, q_start: npt.NDArray[np.float64]):
+        self.model = model
+        q0 = np.asarray(q_start, dtype=np.float64)
+        d = model.distances(q0)
+        self.clearance = float(d.min()) if d.size else math.inf
+        self.bound = shared_bound(model)
+        self.bound.note(q0.tolist(), d)
+        self._at_cmd = np.array(d)  #: a lower bound of every pair's distance at the goal written (n_pairs,)
+        self._segment_clear = model.segment_clear
+        self._limit = float(model.clearance)
+
+    def allows(self, q_from: Sequence[float], q_to: Sequence[float]) -> bool:
+        """Whether the segment ``q_from`` -> ``q_to`` (rad) keeps the clearance; sets :attr:`clearance` to its min
+        clearance (or a lower bound of it, near the last segment checked: :class:`~retarget.ik.collide.
+        ClearanceBound`) when it does (a blocked goal is not written: the clearance stays that of the pose held)."""
+        bound, limit = self.bound, self._limit
+        at0 = np.maximum(self._at_cmd, bound.pairs_at(q_from))
+        at1 = bound.pairs_at(q_to)
+        low = min(float(at0.min()), float(at1.min())) if at0.size else math.inf  # no query: near the last one
+        if low < limit:
+            end = np.array(q_to)
+            at1 = np.array(self.model.distances(end))  # one pose: cheap; the segment from both ends' distances
+            bound.note(q_to, at1)  # the next goals near it need no query
+            low = bound.segment_bound(q_from, q_to, at0, at1)
+            if low < limit:  # near a contact: sample the segment
+                check = self._segment_clear(np.array(q_from), end)
+                if not check.clear:
+                    return False
+                low = float(check.min_clearance)
+        self.clearance = low
+        self._at_cmd = at1
+        return True
+
+
+def plan_route(
+    model: CollisionModel,
+    q_from: npt.NDArray[np.float64],
+    q_to: npt.NDArray[np.float64],
+    *,
+    waypoints: Sequence[npt.NDArray[np.float64]] = (),
+) -> list[npt.NDArray[np.float64]] | None:
+    """The poses a joint-space move from ``q_from`` to ``q_to`` goes through, ``q_to`` last: ``[q_to]`` when the
+    straight segment is clear, ``[w, q_to]`` through the first of ``waypoints`` with both segments clear, else
+    None (no safe route).  A ``q_to`` that is itself not clear has no route.
+
+    >>> import retarget
+    >>> from retarget.collision import CollisionModel, Sphere, World
+    >>> arm = retarget.load_arm("wx250s")
+    >>> model = CollisionModel.for_arm(arm)
+    >>> len(plan_route(model, arm.rest, arm.home))
+    1
+    """
+    if not model.is_clear(q_to):
+        return None
+    if model.segment_clear(q_from, q_to).clear:
+        return [np.asarray(q_to, dtype=np.float64)]
+    for w in waypoints:
+        if model.segment_clear(q_from, w).clear and model.segment_clear(w, q_to).clear:
+            return [np.asarray(w, dtype=np.float64), np.asarray(q_to, dtype=np.float64)]
+    return None
+
+
+def require_route(
+    model: CollisionModel,
+    q_from: npt.NDArray[np.float64],
+    q_to: npt.NDArray[np.float64],
+    *,
+    waypoints: Sequence[npt.NDArray[np.float64]],
+    what: str,
+) -> list[npt.NDArray[np.float64]]:
+    """:func:`plan_route`, or a one-line ConfigError (key ``collision``) saying ``what`` move is blocked."""
+    route = plan_route(model, q_from, q_to, waypoints=waypoints)
+    if route is None:
+        name, metres = model.worst_pair(q_to)
+        if model.is_clear(q_to):
+            detail = "its straight joint-space path collides and no safe waypoint (home, rest) avoids it"
+        else:
+            detail = f"that pose itself is within the clearance ({name} at {metres * 1e3:.1f} mm)"
+        raise ConfigError(f"Expected a collision-free {what}, but {detail}", key="collision")
+    return route

@@ -1,0 +1,102 @@
+"""Collision-aware IK (``CCDSolver(collision=...)``): no result within the clearance, blocked targets reported."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from retarget import load_arm
+from retarget.collision import CollisionModel, Sphere, World
+from retarget.ik import CCDSolver
+from tests.helpers import brute_force_min_clearances
+
+ARMS = ["wx250s", "vx300s", "px100", "omx", "koch"]
+N_TARGETS = 500  #: random targets per arm in the property test
+
+
+def tool(arm, q):
+    return arm.fk(q)[0][:3, 3]
+
+
+@pytest.mark.parametrize("name", ARMS)
+def test_no_solution_comes_within_the_clearance(name):
+    """Random targets (a walk through the arm's reach, below the table and into the base too), each solved warm
+    from the last solution as the control loop does: every pose clear, by an independent brute-force check."""
+    arm = load_arm(name)
+    model = CollisionModel.for_arm(arm)
+    solver = CCDSolver(arm, collision=model, max_iterations=30)
+    rng = np.random.default_rng(7)
+    reach = solver.reach
+    pivot = np.array(solver.base_pivot)
+    jumps = rng.uniform(-1, 1, (N_TARGETS, 3)) * reach * 0.05
+    jumps[rng.uniform(size=N_TARGETS) < 0.02] *= 20  # now and then a jump across the workspace
+    q = arm.home.copy()
+    point = tool(arm, q)
+    low = pivot - reach
+    low[2] = -0.05  # a little below the table
+    poses, blocked = np.empty((N_TARGETS, arm.n_joints)), 0
+    for k in range(N_TARGETS):
+        point = np.clip(point + jumps[k], low, pivot + reach)
+        result = solver.solve(point, q)
+        q = poses[k] = result.q
+        blocked += result.blocked
+        assert not result.blocked or not result.converged
+    worst = brute_force_min_clearances(arm, poses)
+    assert np.all(worst >= model.clearance - 1e-9), f"{int(np.sum(worst < model.clearance))} poses too close"
+    assert 0 < blocked < N_TARGETS  # the walk went into blocked zones, and not only
+
+
+@pytest.fixture(scope="module")
+def wx():
+    return load_arm("wx250s")
+
+
+def test_a_target_inside_a_keep_out_ends_at_the_nearest_safe_pose_reported_blocked(wx):
+    ball = Sphere((0.3, 0.0, 0.2), 0.05)
+    model = CollisionModel.for_arm(wx, world=World(keep_out=(ball,)))
+    result = CCDSolver(wx, collision=model).solve([0.3, 0.0, 0.2], wx.home)
+    assert (result.converged, result.blocked) == (False, True)
+    assert result.clearance >= model.clearance and model.is_clear(result.q)
+    assert result.error == pytest.approx(np.linalg.norm(tool(wx, result.q) - [0.3, 0.0, 0.2]), abs=1e-12)
+    assert 0.05 < result.error < 0.2  # held outside the ball: its radius, the clearance, the gripper's size
+    free = CCDSolver(wx).solve([0.3, 0.0, 0.2], wx.home)  # without the model: into the ball
+    assert free.converged and not model.is_clear(free.q)
+
+
+def test_a_clear_target_costs_one_check_and_reports_its_clearance(wx):
+    model = CollisionModel.for_arm(wx)
+    result = CCDSolver(wx, collision=model).solve([0.3, 0.0, 0.2], wx.home)
+    assert result.converged and not result.blocked
+    assert result.clearance == pytest.approx(model.min_clearance(result.q))
+    plain = CCDSolver(wx).solve([0.3, 0.0, 0.2], wx.home)
+    np.testing.assert_array_equal(plain.q, result.q)  # the same solve: the check changed nothing
+    assert not plain.blocked and math.isnan(plain.clearance)
+
+
+@pytest.mark.parametrize("target", [[0.3, 0.0, -0.05], [0.0, 0.0, 0.02]], ids=["below-table", "inside-base"])
+def test_targets_in_blocked_zones_stop_clear_of_them(wx, target):
+    model = CollisionModel.for_arm(wx)
+    result = CCDSolver(wx, collision=model).solve(target, wx.home)
+    assert result.blocked and not result.converged
+    assert brute_force_min_clearances(wx, result.q[None])[0] >= model.clearance
+
+
+def test_a_path_around_an_obstacle_is_found_by_shortened_steps(wx):
+    """A target reachable clear of a keep-out box, whose free solution from the seed collides with it."""
+    model = CollisionModel.for_arm(wx, world=World(keep_out=(Sphere((0.25, 0.0, 0.35), 0.04),)))
+    solver = CCDSolver(wx, collision=model)
+    for target in ([0.25, 0.15, 0.3], [0.35, -0.1, 0.25], [0.2, 0.2, 0.1]):
+        result = solver.solve(target, wx.home)
+        assert model.is_clear(result.q)
+        if not result.blocked:
+            assert result.converged and result.error <= solver.tolerance
+
+
+def test_an_orientation_target_is_checked_too(wx):
+    model = CollisionModel.for_arm(wx, world=World(keep_out=(Sphere((0.3, 0.0, 0.2), 0.05),)))
+    T, _ = wx.fk([0.0, 0.3, 0.2, 0.0, 0.4, 0.0])
+    solver = CCDSolver(wx, collision=model, max_iterations=200)
+    result = solver.solve([0.3, 0.0, 0.2], wx.home, T[:3, :3])
+    assert result.blocked and not result.converged and model.is_clear(result.q)
