@@ -26,7 +26,7 @@ from retarget.arm import Arm
 from retarget.bvh import DEMO_CLIP
 from retarget.bvh.motion import Motion
 from retarget.cli import print_json
-from retarget.cli._arm import add_arm_arguments, load_arm_option
+from retarget.cli._arm import add_arm_arguments, add_collision_arguments, collision_model, load_arm_option
 from retarget.cli._bus import (
     add_bus_arguments,
     build_bus,
@@ -35,9 +35,12 @@ from retarget.cli._bus import (
     say,
     signals_stop,
 )
+from retarget.cli._view import add_view_arguments, check_view_options, forward, live_view, serve_web
+from retarget.collision import CollisionModel
 from retarget.control import ControlLoop, LoopConfig, TickRecord
 from retarget.control.bus import connected
 from retarget.control.clock import Clock, MonotonicClock, VirtualClock
+from retarget.control.park import check_moves, park
 from retarget.control.summary import RunSummary
 from retarget.control.telemetry import TelemetryWriter
 from retarget.errors import BusError, ConfigError
@@ -55,6 +58,7 @@ examples:
   retarget replay dance.bvh --port /dev/ttyUSB0 --lead-in 0.3   a gentler move to the clip's first pose
   retarget replay dance.bvh --arm robot.urdf --tip ee_link --port /dev/ttyUSB0   a URDF with several leaves
   retarget replay --port 'sim://wx250s?drop=0.05&seed=1'   a simulated bus with faults, by URL
+  retarget replay dance.bvh --keep-out sphere:0.3,0,0.2,0.05 --clearance 15   stay 15 mm clear of a ball
 """
 
 
@@ -72,6 +76,7 @@ def add_clip_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--velocity-scale", default="1", metavar="F", help="fraction of each joint's max speed (default 1)"
     )
+    add_collision_arguments(parser)
 
 
 def add_mapping_arguments(parser: argparse.ArgumentParser) -> None:
@@ -117,6 +122,7 @@ class Inputs:
     motion: Motion
     arm: Arm
     targets: Targets
+    collision: CollisionModel  #: every target, IK pose and goal is checked against it
 
 
 def load_inputs(args: argparse.Namespace) -> Inputs:
@@ -139,8 +145,9 @@ def load_inputs(args: argparse.Namespace) -> Inputs:
     }
     config = MappingConfig.from_table(arm.mapping, path=arm.source, overrides=_checked_overrides(overrides))
     motion = retarget.load_bvh(clip)
-    targets = retarget_targets(motion, arm, config)
-    return Inputs(clip=clip, motion=motion, arm=arm, targets=targets)
+    collision = collision_model(args, arm)
+    targets = retarget_targets(motion, arm, config, collision=collision)
+    return Inputs(clip=clip, motion=motion, arm=arm, targets=targets, collision=collision)
 
 
 def _checked_overrides(overrides: dict[str, Any]) -> dict[str, Any]:
@@ -213,6 +220,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     )
     add_bus_arguments(parser, shutdown="rest")
     add_mapping_arguments(parser)
+    add_view_arguments(parser, live=True)
     return parser
 
 
@@ -237,6 +245,7 @@ def _progress_printer(loop: ControlLoop) -> Callable[[TickRecord], None]:
 def run(args: argparse.Namespace) -> int:
 
     check_bus_options(args)
+    check_view_options(args)
     if args.dry_run and args.port is not None:
         raise ConfigError("--dry-run uses no bus; drop --port", key="--port", value=args.port)
     inputs = load_inputs(args)
@@ -246,6 +255,7 @@ def run(args: argparse.Namespace) -> int:
         loop=args.loop,
         max_ticks=optional_count(args.max_ticks, option="--max-ticks"),
         lead_in_speed=number(args.lead_in, option="--lead-in"),
+        collision=inputs.collision,
     )
     setup = None if args.dry_run else build_bus(args, inputs.arm, config)
     telemetry = None
@@ -258,12 +268,20 @@ def run(args: argparse.Namespace) -> int:
             out = sys.stdout if args.telemetry == "-" else args.telemetry
             telemetry = TelemetryWriter(out, inputs.arm.joint_names).open()
             loop.on_tick = telemetry
-        with signals_stop(loop.stop) as stopped:
+        with (
+            signals_stop(loop.stop) as stopped,
+            live_view(args, inputs.arm, motion=inputs.motion, targets=inputs.targets, name=inputs.clip.name) as live,
+        ):
+            loop.on_tick = forward(on_tick=loop.on_tick, live=live)
             if setup is None:  # no arm to lead in: start on the first target's solution, as export does
                 summary = loop.run(None, q_start=loop.initial_pose())
             else:
+                first = loop.initial_pose() if config.lead_in_speed > 0 else None
+                check_moves(inputs.arm, config, first=first, rest=args.shutdown == "rest")  # before torque is on
                 with connected(setup.bus):
                     summary = loop.run(setup.bus)
+                    if args.shutdown == "rest":  # the bus's rest move next: through home when straight collides
+                        park(inputs.arm, setup.bus, config=config, clock=setup.clock)
     except BusError as exc:
         if args.json and isinstance(exc.summary, RunSummary):  # the loop's summary of the ticks that ran
             print_json(failure_summary(exc.summary.to_dict(), exc))
@@ -276,4 +294,5 @@ def run(args: argparse.Namespace) -> int:
     say(summary.format())  # a hung-up terminal (SIGHUP) must not turn a clean stop into a traceback
     if args.json:
         print_json(summary.to_dict())
+    serve_web(args)
     return stopped.exit_status if summary.interrupted else 0

@@ -16,6 +16,7 @@ shutdown, '--shutdown').
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import sys
 import threading
@@ -24,7 +25,7 @@ from typing import Any
 
 from retarget.arm import Arm
 from retarget.cli import EXIT_UNREACHED, print_json
-from retarget.cli._arm import add_arm_arguments, load_arm_option
+from retarget.cli._arm import add_arm_arguments, add_collision_arguments, collision_model, load_arm_option
 from retarget.cli._bus import (
     BusSetup,
     Stopped,
@@ -35,11 +36,13 @@ from retarget.cli._bus import (
     say,
     signals_stop,
 )
+from retarget.cli._view import add_view_arguments, check_view_options, forward, live_view, serve_web
 from retarget.cli.options import OPTIONS
 from retarget.cli.replay import number, optional_count, optional_number
 from retarget.cli.tui import Jog, KeySource, TerminalUI
 from retarget.control.bus import connected
 from retarget.control.loop import LoopConfig, TickRecord
+from retarget.control.park import check_moves, park
 from retarget.control.summary import RunSummary
 from retarget.control.telemetry import TelemetryWriter
 from retarget.errors import BusError, ConfigError
@@ -60,6 +63,7 @@ examples:
   retarget teleop --udp 9000 --timeout 0.5 --port /dev/ttyUSB0     datagrams on 127.0.0.1:9000
   retarget teleop --interactive --port /dev/ttyUSB0 --max-speed 0.05
   retarget teleop --stdin --telemetry run.csv < path.txt            one 'x y z' or JSON line per target
+  retarget teleop --to 0.3,0,0.2 --keep-out box:0.25,-0.05,0,0.35,0.05,0.1   a box the arm keeps out of
 """
 
 
@@ -101,10 +105,12 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
     b = parser.add_argument_group("arm, bus and loop (as in replay; --shutdown defaults to hold here)")
     add_arm_arguments(b)
+    add_collision_arguments(b)
     b.add_argument("--rate", default="100", metavar="HZ", help="control ticks per second (default 100)")
     b.add_argument("--velocity-scale", default="1", metavar="F", help="fraction of each joint's max speed (default 1)")
     b.add_argument("--max-ticks", default=None, metavar="N", help="stop after N ticks")
     add_bus_arguments(b, shutdown="hold")
+    add_view_arguments(b, live=True)
     return parser
 
 
@@ -160,7 +166,7 @@ def _check_options(args: argparse.Namespace) -> dict[str, Any]:
 
 def _gate(args: argparse.Namespace, arm: Arm, clock: Any, opts: dict[str, Any]) -> TargetGate:
 
-    bounds = TargetBounds.for_arm(arm, margin=opts["margin"], box=opts["box"])
+    bounds = TargetBounds.for_arm(arm, margin=opts["margin"], box=opts["box"], collision=opts.get("collision"))
     pose = None
     if args.frame == "world":
         values = opts["base_pose"] or [0.0, 0.0, 0.0]
@@ -203,6 +209,7 @@ def _name(args: argparse.Namespace) -> str:
 def run(args: argparse.Namespace) -> int:
 
     opts = _check_options(args)
+    check_view_options(args)
     config = LoopConfig(
         rate=number(args.rate, option="--rate"),
         velocity_scale=number(args.velocity_scale, option="--velocity-scale"),
@@ -212,6 +219,7 @@ def run(args: argparse.Namespace) -> int:
     if args.interactive and not (sys.stdin.isatty() and sys.stdout.isatty()):
         raise ConfigError("--interactive needs a terminal on stdin and stdout", key="--interactive", value=True)
     arm = load_arm_option(args)
+    config = dataclasses.replace(config, collision=collision_model(args, arm))
     setup = build_bus(args, arm, config)
     source: Source | None = None
     telemetry: TelemetryWriter | None = None
@@ -219,13 +227,15 @@ def run(args: argparse.Namespace) -> int:
     stop = threading.Event()
     stopped = Stopped()
     try:
-        gate = _gate(args, arm, setup.clock, opts)
+        gate = _gate(args, arm, setup.clock, {**opts, "collision": config.collision})
         if not args.interactive:
             source = _source(args, gate).start()
         if args.telemetry is not None:
             out = sys.stdout if args.telemetry == "-" else args.telemetry
             on_tick = telemetry = TelemetryWriter(out, arm.joint_names).open()
-        with signals_stop(stop.set) as stopped, connected(setup.bus):
+        check_moves(arm, config, first=None, rest=args.shutdown == "rest")  # before torque is on
+        with signals_stop(stop.set) as stopped, connected(setup.bus), live_view(args, arm, name=_name(args)) as live:
+            on_tick = forward(on_tick=on_tick, live=live)
             if source is None:
                 result = _interactive(arm, setup, gate, config, opts, stop, on_tick)
             else:
@@ -253,6 +263,8 @@ def run(args: argparse.Namespace) -> int:
                     stop=stop,
                     name=_name(args),
                 )
+            if args.shutdown == "rest":  # the bus's rest move next: through home when straight collides
+                park(arm, setup.bus, config=config, clock=setup.clock)
     except BusError as exc:
         if args.json and isinstance(exc.summary, RunSummary):  # the loop's summary of the ticks that ran
             print_json(failure_summary({**exc.summary.to_dict(), "teleop": None}, exc))
@@ -264,6 +276,7 @@ def run(args: argparse.Namespace) -> int:
             telemetry.close()
         setup.release()
     _report(args, result, gate.frame_pose)
+    serve_web(args)
     if result.summary.interrupted:
         return stopped.exit_status
     if result.target is not None and not result.reached_target and not args.interactive:

@@ -1,0 +1,124 @@
+"""``retarget view``: show a clip's retargeting: the skeleton, the targets and the posed arm on one timeline.
+
+The clip is solved as ``retarget export`` solves it (no bus: IK warm-started tick by tick at ``--rate``, joint
+and velocity limits applied, from the first target's solution), then logged to Rerun: a native viewer by
+default, ``--record`` an .rrd file, ``--web`` the browser viewer on 127.0.0.1; ``--png`` draws a contact sheet
+of evenly spaced moments instead (matplotlib, no GUI).  ``retarget view run.rrd --web`` serves a saved recording
+to the browser.  Needs ``pip install 'retarget[viz]'``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from retarget.cli._view import add_view_arguments, outputs, serve_until_interrupted, start_web
+from retarget.cli.export import offline_loop
+from retarget.cli.replay import Inputs, add_clip_arguments, add_mapping_arguments
+from retarget.control import TickRecord
+from retarget.errors import ConfigError
+
+EXAMPLES = """\
+examples:
+  retarget view                                   the demo clip on wx250s in a native Rerun viewer
+  retarget view dance.bvh --record dance.rrd      save the timeline; open later with `rerun dance.rrd`
+  retarget view dance.bvh --web                   serve the browser viewer on 127.0.0.1:9090 and print its URL;
+                                                  from another machine: ssh -L 9090:127.0.0.1:9090
+                                                  -L 9876:127.0.0.1:9876 HOST, then open the URL there
+  retarget view dance.rrd --web                   serve a saved recording to the browser the same way
+  retarget view dance.bvh --layout overlay        the human drawn in the robot's frame, wrist on the target
+  retarget view dance.bvh --side left --start 2 --end 6 --png sheet.png   a contact sheet, no GUI
+"""
+
+
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+    parser: argparse.ArgumentParser = subparsers.add_parser(
+        "view",
+        help="show a clip's skeleton, targets and solved arm on one timeline (Rerun), or a contact sheet PNG",
+        description=__doc__.split("\n\n")[0].split(": ", 1)[1],
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    add_clip_arguments(parser)
+    parser.add_argument(
+        "--layout", default="side", choices=("side", "overlay"), help="human beside the robot (default) or in its frame"
+    )
+    parser.add_argument("--png", default=None, metavar="PNG", help="draw a contact sheet of the clip instead")
+    parser.add_argument("--moments", default="6", metavar="N", help="moments on the contact sheet (default 6)")
+    add_view_arguments(parser, live=False)
+    add_mapping_arguments(parser)
+    return parser
+
+
+def solve(args: argparse.Namespace) -> tuple[Inputs, list[TickRecord]]:
+    """The clip's ticks as ``retarget export`` computes them (its own inputs, config, loop and start pose)."""
+    inputs, loop = offline_loop(args)
+    records: list[TickRecord] = []
+    loop.on_tick = records.append
+    loop.run(None, q_start=loop.initial_pose())
+    return inputs, records
+
+
+def run(args: argparse.Namespace) -> int:
+    from retarget.view import require
+
+    if args.clip is not None and Path(args.clip).suffix.lower() == ".rrd":
+        return _serve_recording(args)
+    if args.png is not None:
+        require("--png", "matplotlib")
+        moments = _moments(args.moments)
+    else:
+        out = outputs(args, spawn=True)
+    inputs, records = solve(args)
+    from retarget.view.columns import TickColumns
+    from retarget.view.scene import Layout, Scene
+
+    scene = Scene.for_clip(inputs.motion, inputs.arm, inputs.targets, layout=Layout(args.layout))
+    columns = TickColumns.of(records)
+    if args.png is not None:
+        from retarget.view.sheet import contact_sheet
+
+        contact_sheet(scene, columns, Path(args.png), moments=moments, title=inputs.clip.name)
+        print(f"retarget: {len(records)} ticks of {inputs.clip.name} -> {args.png}", file=sys.stderr)
+        return 0
+    from retarget.view.rerun_log import log_ticks
+    from retarget.view.sinks import open_recording
+
+    web = start_web(out)
+    try:
+        with open_recording(scene, out, name=inputs.clip.name, web=web) as rec:
+            log_ticks(rec, scene, columns)
+        where = f" -> {out.record}" if out.record is not None else ""
+        print(f"retarget: {len(records)} ticks of {inputs.clip.name} on {inputs.arm.name}{where}", file=sys.stderr)
+        if web is not None:
+            serve_until_interrupted(web)  # until Ctrl-C: exit 130
+    finally:
+        if web is not None:
+            web.close()
+    return 0
+
+
+def _serve_recording(args: argparse.Namespace) -> int:
+    """``retarget view run.rrd --web``: the saved recording in the browser viewer, until Ctrl-C."""
+    path = Path(args.clip)
+    if not args.web:
+        raise ConfigError(f"Expected --web to serve the recording {path} (or open it with `rerun {path}`)",
+                          key="--web", value=False)  # fmt: skip
+    if not path.is_file():
+        raise ConfigError("Expected a Rerun recording file", key="CLIP", value=str(path))
+    web = start_web(outputs(args, spawn=False), files=(path.resolve(),))
+    assert web is not None
+    serve_until_interrupted(web)
+    return 0
+
+
+def _moments(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise ConfigError("Expected a whole number of moments", key="--moments", value=text) from None
+    if not 1 <= n <= 24:
+        raise ConfigError("Expected 1 to 24 moments", key="--moments", value=n)
+    return n
