@@ -58,6 +58,7 @@ from retarget.arm.model import Arm
 from retarget.control.clock import Clock, MonotonicClock
 from retarget.errors import ConfigError
 from sim.faults import Faults, ReplyFaults, wire_time
+from sim.mount import ArmBody, Mounting
 from sim.protocol import Packet, PacketParser, build_fast_read_status, build_status
 from sim.servo import SimServo
 
@@ -165,6 +166,8 @@ class SimBus:
         self._replies_end = -math.inf  #: clock time the last status packet's last byte is on the wire
         #: instructions the host started writing while a status packet was still on the wire (wire model on)
         self.collisions: list[LogEntry] = []
+        #: the physical joints of an arm built by :meth:`from_arm` (read them, turn them by hand), else None
+        self.body: ArmBody | None = None
         self._lock = threading.RLock()
         self.t_start = self.clock.now()
         self._apply_scheduled_faults()
@@ -221,12 +224,15 @@ class SimBus:
         boot_time: float = 0.0,
         faults: Faults | None = None,
         crc_error_reply: bool = True,
+        mount: Mounting | None = None,
     ) -> SimBus:
         """Every servo of ``arm`` (an Arm, or the name or path it loads from): joints, shadows and gripper.
 
         The servos sit at ``pose`` (joint angles, rad; default the arm's rest pose), read through each servo's
         direction and offset as the driver will configure them; the gripper at its centre.  ``baud`` (bps)
-        defaults to the arm's.  The other arguments as :meth:`from_ids`.
+        defaults to the arm's.  ``mount``: servos mounted off the arm file's zero or the other way round
+        (:mod:`sim.mount`), as on a hand-built arm.  :attr:`body` then reads and turns the physical joints.
+        The other arguments as :meth:`from_ids`.
 
         >>> SimBus.from_arm("wx250s")
         SimBus(ids=[1, 2, 3, 4, 5, 6, 7, 8, 9], baud=1000000)
@@ -238,10 +244,15 @@ class SimBus:
         q = list(arm.rest.tolist() if pose is None else pose)
         if len(q) != arm.n_joints:
             raise ConfigError(f"Expected {arm.n_joints} joint angles", key="pose", value=q)
+        mount = mount if mount is not None else Mounting()
+        unknown = mount.ids - {s.id for j in arm.joints for s in j.servos}
+        if unknown:
+            raise ConfigError(f"Expected joint servo IDs of {arm.name}", key="mount", value=sorted(unknown))
         servos = []
         for joint, angle in zip(arm.joints, q, strict=True):
             for s in joint.servos:
-                actual = 2048 + s.direction * (s.offset + angle / RAD_PER_PULSE)
+                sign, m = mount.sign(s.id), mount.offsets.get(s.id, 0)
+                actual = 2048 + m + sign * s.direction * (s.offset + angle / RAD_PER_PULSE)
                 servos.append(
                     SimServo(
                         s.model,
@@ -260,7 +271,9 @@ class SimBus:
                     g.model, g.id, clock=clock, baud=baud, return_delay_time=return_delay_time, boot_time=boot_time
                 )
             )
-        return cls(servos, clock=clock, baud=baud, faults=faults, crc_error_reply=crc_error_reply)
+        bus = cls(servos, clock=clock, baud=baud, faults=faults, crc_error_reply=crc_error_reply)
+        bus.body = ArmBody(arm, mount, {s.id: s for s in servos})
+        return bus
 
     def _apply_scheduled_faults(self) -> None:
         for fault in self.faults.hardware:

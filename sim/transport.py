@@ -21,6 +21,8 @@ URL grammar::
       boot_ms=MS        how long a servo stays silent after REBOOT (default 0)
       clock=virtual     the bus runs on its own VirtualClock: waiting for a reply costs no real time,
                         the clock jumps to its arrival (default: clock=real, time.perf_counter)
+      mount=ID:PULSES,...  reverse=ID,...
+                        (ARM form) servos mounted off the arm file's zero, or the other way round (sim.mount)
       drop= corrupt= delay_ms= unplug= hwerror= wire= seed=
                         faults, as documented in sim.faults (e.g. drop=0.1&seed=1, unplug=4@1.5,
                         hwerror=3:overload@2, wire=1)
@@ -48,6 +50,7 @@ from retarget.control.clock import MonotonicClock, VirtualClock
 from retarget.errors import ConfigError, RetargetError
 from sim.bus import ScheduledReply, SimBus
 from sim.faults import QUERY_KEYS, Faults
+from sim.mount import MOUNT_KEYS, Mounting
 
 if TYPE_CHECKING:
     from _typeshed import ReadableBuffer
@@ -148,9 +151,9 @@ def bus_from_url(url: str, *, port_baud: int | None = None) -> SimBus:
         raise ConfigError("Expected a URL starting with sim://", key="url", value=url)
     where = parts.netloc + parts.path.rstrip("/")
     query = parse_qs(parts.query, keep_blank_values=True)
-    unknown = set(query) - _BUS_KEYS - QUERY_KEYS
+    unknown = set(query) - _BUS_KEYS - QUERY_KEYS - MOUNT_KEYS
     if unknown:
-        known = ", ".join(sorted(_BUS_KEYS | QUERY_KEYS))
+        known = ", ".join(sorted(_BUS_KEYS | QUERY_KEYS | MOUNT_KEYS))
         raise ConfigError(f"unknown option(s) {', '.join(sorted(unknown))}; known: {known}", key="url", value=url)
     if where.startswith("@"):
         if query:
@@ -166,6 +169,7 @@ def bus_from_url(url: str, *, port_baud: int | None = None) -> SimBus:
         raise ConfigError("Expected clock=real or clock=virtual", key="clock", value=clock_name)
     clock = VirtualClock() if clock_name == "virtual" else MonotonicClock()
     faults = Faults.from_query(query, source=url)
+    mount = Mounting.from_query(query, source=url)
 
     def number(key: str) -> float | None:
         text = last(key)
@@ -186,7 +190,11 @@ def bus_from_url(url: str, *, port_baud: int | None = None) -> SimBus:
     if where:
         if "ids" in query or "model" in query:
             raise ConfigError("give either an arm name or ids=/model=, not both", key="url", value=url)
-        return SimBus.from_arm(where, clock=clock, baud=baud, return_delay_time=rdt, boot_time=boot, faults=faults)
+        return SimBus.from_arm(
+            where, clock=clock, baud=baud, return_delay_time=rdt, boot_time=boot, faults=faults, mount=mount
+        )
+    if mount.ids:
+        raise ConfigError("mount= and reverse= need an arm: sim://ARM?mount=...", key="url", value=url)
     ids_text = last("ids")
     if not ids_text:
         raise ConfigError("Expected sim://ARM, sim://?ids=1-6&model=..., or sim://@NAME", key="url", value=url)

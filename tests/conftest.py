@@ -7,6 +7,8 @@ Tests that need them are skipped, with the reason, when they are absent.
 
 from __future__ import annotations
 
+import os
+from collections.abc import Iterator
 from pathlib import Path
 
 import dynamixel_sdk.port_handler
@@ -18,6 +20,21 @@ from tests.helpers import SHARED_BVH
 #: simulated one on a pty is a thread or process of this test run: on a loaded 2-core CI machine it can be
 #: descheduled past the SDK's stock 34 ms and turn a reply into COMM_RX_TIMEOUT.
 TEST_LATENCY_TIMER_MS = 100
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _no_user_calibration(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """Point the user configuration folder (``retarget calibrate``'s default, applied automatically by replay,
+    teleop and scan) at an empty folder, so a developer's own saved calibration never changes a test."""
+    saved = {name: os.environ.get(name) for name in ("XDG_CONFIG_HOME", "APPDATA")}
+    empty = str(tmp_path_factory.mktemp("config"))
+    os.environ.update(XDG_CONFIG_HOME=empty, APPDATA=empty)
+    yield
+    for name, value in saved.items():
+        if value is None:
+            os.environ.pop(name, None)
+        else:
+            os.environ[name] = value
 
 
 @pytest.fixture

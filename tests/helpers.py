@@ -976,7 +976,7 @@ def brute_force_min_clearances(arm, Q, world=None, samples: int = 16, chunk: int
 # 57600 baud, the X-series addresses, and the same calls and printed lines.  Set RETARGET_ROBOTIS_EXAMPLES to a
 # DynamixelSDK checkout's python/tests/protocol2_0 folder to run ROBOTIS's files themselves (DEVICENAME replaced).
 
-_ROBOTIS_PROLOGUE = '''
+_ROBOTIS_PROLOGUE = """
 import sys, tty, termios
 fd = sys.stdin.fileno()
 old_settings = termios.tcgetattr(fd)
@@ -1015,16 +1015,18 @@ def report(result, error, ok=None):
         print("%s" % packetHandler.getRxPacketError(error))
     elif ok:
         print(ok)
-'''
+"""
 
 ROBOTIS_EXAMPLES: dict[str, str] = {
-    "ping": _ROBOTIS_PROLOGUE + '''
+    "ping": _ROBOTIS_PROLOGUE
+    + """
 DXL_ID = 1
 model_number, result, error = packetHandler.ping(portHandler, DXL_ID)
 report(result, error, "[ID:%03d] ping Succeeded. Dynamixel model number : %d" % (DXL_ID, model_number))
 portHandler.closePort()
-''',
-    "read_write": _ROBOTIS_PROLOGUE + '''
+""",
+    "read_write": _ROBOTIS_PROLOGUE
+    + """
 DXL_ID = 1
 index = 0
 goals = [DXL_MINIMUM_POSITION_VALUE, DXL_MAXIMUM_POSITION_VALUE]
@@ -1046,8 +1048,9 @@ while 1:
 result, error = packetHandler.write1ByteTxRx(portHandler, DXL_ID, ADDR_TORQUE_ENABLE, TORQUE_DISABLE)
 report(result, error)
 portHandler.closePort()
-''',
-    "sync_read_write": _ROBOTIS_PROLOGUE + '''
+""",
+    "sync_read_write": _ROBOTIS_PROLOGUE
+    + """
 DXL1_ID, DXL2_ID = 1, 2
 LEN = 4
 index = 0
@@ -1092,7 +1095,7 @@ for dxl_id in (DXL1_ID, DXL2_ID):
     result, error = packetHandler.write1ByteTxRx(portHandler, dxl_id, ADDR_TORQUE_ENABLE, TORQUE_DISABLE)
     report(result, error)
 portHandler.closePort()
-''',
+""",
 }
 
 
@@ -1151,3 +1154,153 @@ def run_with_keys(script: Path, keys: Sequence[bytes], *, prompt: bytes, timeout
         proc.wait(timeout=10)
         os.close(master)
     return out.decode(errors="replace")
+
+
+# ------------------------------------------------------------------------------------------ calibration (issue 18)
+
+
+def random_mounting(arm, seed: int, *, reverse: bool = True, spread: int = 400):
+    """A seeded :class:`sim.mount.Mounting` for ``arm``: every joint servo's horn up to ``spread`` pulses off, and
+    (``reverse``) about a third of the primary servos turned round (shadows keep their primary's way)."""
+    from sim.mount import Mounting
+
+    rng = random.Random(seed)
+    offsets = {s.id: rng.randint(-spread, spread) for j in arm.joints for s in j.servos}
+    turned: set[int] = set()
+    if reverse:
+        for j in arm.joints:
+            if rng.random() < 0.35:
+                turned.update(s.id for s in j.servos)
+    return Mounting(offsets, frozenset(turned))
+
+
+def mount_query(mounting) -> str:
+    """``mount=...&reverse=...`` of a Mounting, for a ``sim://ARM?`` URL."""
+    parts = ["mount=" + ",".join(f"{i}:{m:+d}" for i, m in sorted(mounting.offsets.items()))]
+    if mounting.reversed:
+        parts.append("reverse=" + ",".join(map(str, sorted(mounting.reversed))))
+    return "&".join(parts)
+
+
+def calibration_truth(arm, mounting) -> dict[int, tuple[int, int]]:
+    """Servo ID -> the (direction, offset) a calibration of the mounted ``arm`` must find."""
+    return {s.id: mounting.truth(s.id, s.direction, s.offset) for j in arm.joints for s in j.servos}
+
+
+class ScriptedPrompter:
+    """A :class:`retarget.calibrate.prompts.Prompter` for tests: records every prompt, answers confirmations from
+    ``answers`` (question substring -> answer; default yes), and raises KeyboardInterrupt at the first prompt that
+    contains ``interrupt_on``, as a Ctrl-C there would."""
+
+    def __init__(self, *, answers: dict[str, bool] | None = None, interrupt_on: str | None = None):
+        self.prompts: list[str] = []
+        self.lines: list[str] = []
+        self.answers = answers or {}
+        self.interrupt_on = interrupt_on
+
+    def _prompt(self, text: str) -> None:
+        self.prompts.append(text)
+        if self.interrupt_on is not None and self.interrupt_on in text:
+            raise KeyboardInterrupt
+
+    def say(self, text: str) -> None:
+        self.lines.append(text)
+
+    def enter(self, prompt: str) -> None:
+        self._prompt(prompt)
+
+    def confirm(self, question: str, *, default: bool) -> bool:
+        self._prompt(question)
+        return next((v for k, v in self.answers.items() if k in question), True)
+
+    def watch(self, prompt, sample, step=None) -> None:
+        self._prompt(prompt)
+        self.lines.append(sample())
+        while step is not None and step():
+            self.lines.append(sample())
+
+
+class Tmux:
+    """A private tmux server (its own socket, killed on close) running one command in a wide window, for tests of
+    interactive prompts in a real terminal: :meth:`wait_for` text on the screen, :meth:`keys` to type."""
+
+    def __init__(self, name: str):
+        import shutil
+
+        if shutil.which("tmux") is None:
+            pytest.skip("tmux is not installed (apt-get install -y tmux)")
+        self.socket = f"retarget-test-{os.getpid()}-{name}"
+        self.target = "t"
+
+    def _run(self, *args: str) -> str:
+        import subprocess
+
+        done = subprocess.run(["tmux", "-L", self.socket, *args], capture_output=True, text=True, timeout=10)
+        return done.stdout
+
+    def start(self, command: str, *, cwd: Path) -> None:
+        """Run ``command`` (a shell line) in a new 200 x 50 window; ``EXIT=<status>`` is printed when it ends."""
+        self._run("new-session", "-d", "-s", self.target, "-x", "200", "-y", "50", "-c", str(cwd),
+                  f"{command}; echo EXIT=$?; sleep 30")  # fmt: skip
+
+    def screen(self) -> str:
+        return self._run("capture-pane", "-p", "-J", "-S", "-200", "-t", self.target)
+
+    def wait_for(self, text: str, *, timeout: float = 20.0, count: int = 1) -> str:
+        """The screen once ``text`` is on it ``count`` times; fails after ``timeout`` s with the screen."""
+        import time
+
+        deadline = time.monotonic() + timeout
+        while True:
+            screen = self.screen()
+            if screen.count(text) >= count:
+                return screen
+            if time.monotonic() > deadline:
+                raise AssertionError(f"{text!r} not on the screen after {timeout} s:\n{screen}")
+            time.sleep(0.03)
+
+    def keys(self, *keys: str) -> None:
+        """Type ``keys`` (tmux key names: "Enter", "C-c", or literal text)."""
+        self._run("send-keys", "-t", self.target, *keys)
+
+    def close(self) -> None:
+        self._run("kill-server")
+
+
+def start_sim_server(*argv: str):
+    """``retarget sim --tcp 127.0.0.1:0 --control 127.0.0.1:0 --no-wire *argv`` as a process: (process, the
+    socket:// URL to open, the control address)."""
+    import select
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "retarget", "sim", "--tcp", "127.0.0.1:0", "--control", "127.0.0.1:0", "--no-wire",
+         *argv],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, bufsize=0,
+    )  # fmt: skip
+    data = b""
+    assert proc.stdout is not None
+    while data.count(b"\n") < 2:  # unbuffered: select sees what readline would have kept in a buffer
+        if not select.select([proc.stdout], [], [], 30.0)[0]:
+            proc.kill()
+            pytest.fail(f"retarget sim printed nothing in 30 s: {proc.communicate()[1]!r}")
+        data += os.read(proc.stdout.fileno(), 4096)
+    url, control = data.decode().split("\n")[:2]
+    return proc, url.strip(), control.strip()
+
+
+def sim_control(address: str, command: str) -> dict:
+    """One command on a ``retarget sim --control HOST:PORT`` socket; its JSON answer."""
+    import socket
+
+    host, _, port = address.rpartition(":")
+    with socket.create_connection((host, int(port)), timeout=10) as s:
+        s.sendall(command.encode() + b"\n")
+        data = b""
+        while not data.endswith(b"\n"):
+            chunk = s.recv(65536)
+            if not chunk:
+                break
+            data += chunk
+    return json.loads(data)

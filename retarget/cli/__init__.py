@@ -28,7 +28,9 @@ from retarget.cli.options import option_error
 from retarget.errors import BusError, ConfigError, RetargetError
 
 #: Subcommands in the order ``--help`` lists them.
-COMMANDS: tuple[str, ...] = ("replay", "teleop", "export", "inspect", "arm", "scan", "sim")
+COMMANDS: tuple[str, ...] = (
+    "replay", "teleop", "export", "view", "plot", "inspect", "arm", "scan", "calibrate", "sim"
+)  # fmt: skip
 
 EXIT_OK = 0
 EXIT_USAGE = 2  #: bad input: a file, a config key, an option value
@@ -49,6 +51,7 @@ examples:
   retarget arm vx300s                  an arm's joints, limits, servos and poses (--list: every bundled arm)
   retarget arm wx250s --ik 0.35,0,0.25 solve IK for a point in the base frame
   retarget scan --port /dev/ttyUSB0    list the servos on a port: ID, model, firmware, baud
+  retarget calibrate --arm koch --port /dev/ttyUSB0   a hand-built arm's servo zeros, directions, ranges
   retarget sim --tcp 127.0.0.1:4000    simulated servos of wx250s on loopback TCP (or a pty by default)
 
 run 'retarget COMMAND --help' for each command's own examples.

@@ -18,6 +18,7 @@ from sim.bus import SimBus
 from sim.control import ControlServer, parse_address
 from sim.faults import Faults
 from sim.hand_commands import HandCommand, HandSchedule, parse_hand
+from sim.mount import Mounting
 from sim.server import PtyServer, SimServer, TcpServer
 
 EPILOG = """\
@@ -35,6 +36,8 @@ examples:
   retarget sim --hand 3:to:3000:1@5 --hand 3:release@8
                                                  5 s in, servo 3 is turned to 3000 in 1 s; let go at 8 s
   retarget sim --control 127.0.0.1:4001          take commands on a socket: echo 'hand 2 to 3000 1' | nc ...
+  retarget sim --arm koch --mount 1:+300 --reverse 3
+                                                 a hand-built Koch: servo 1's horn 300 pulses off, servo 3 reversed
   retarget sim --arm robot.urdf --tip ee_link    the servos of a URDF arm (servo IDs from robot.servos.toml)
 
 The first line on stdout is what to open: a device path (/dev/pts/N) or a socket:// URL; with --control the
@@ -76,6 +79,16 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         type=float,
         default=DEFAULT_BOOT_MS,
         help=f"how long a servo stays silent after answering REBOOT (default {DEFAULT_BOOT_MS:g}, measured on XC330)",
+    )
+    servos.add_argument(
+        "--mount",
+        action="append",
+        default=[],
+        metavar="ID:PULSES",
+        help="servo ID's horn sits PULSES off the arm file's zero, as on a hand-built arm (repeatable)",
+    )
+    servos.add_argument(
+        "--reverse", action="append", default=[], metavar="ID", help="servo ID is mounted the other way round"
     )
     where = parser.add_mutually_exclusive_group()
     where.add_argument("--pty", action="store_true", help="serve on a new pseudo-terminal (the default)")
@@ -223,6 +236,9 @@ def build_bus(args: argparse.Namespace) -> SimBus:
     if args.ids is not None:
         if args.arm is not None:
             raise ConfigError("give either --arm or --ids, not both", key="--ids", value=args.ids)
+        if args.mount or args.reverse:
+            option = "--mount" if args.mount else "--reverse"
+            raise ConfigError(f"{option} goes with an --arm, not --ids", key=option, value=args.ids)
         if args.base is not None or args.tip is not None:
             option = "--base" if args.base is not None else "--tip"
             raise ConfigError(f"{option} goes with a URDF --arm, not --ids", key=option, value=args.ids)
@@ -241,6 +257,11 @@ def build_bus(args: argparse.Namespace) -> SimBus:
         raise ConfigError("--model goes with --ids", key="--model", value=args.model)
     arm = load_arm_option(args)
     _check_fault_ids(fault_ids, arm.servo_ids)
+    try:
+        mount = Mounting.from_options(mount=args.mount, reverse=args.reverse)
+    except ConfigError as exc:
+        raise exc.with_key(f"--{exc.key}") from None
+    _check_fault_ids({"--mount": set(mount.offsets), "--reverse": set(mount.reversed)}, arm.servo_ids)
     return SimBus.from_arm(
         arm,
         clock=clock,
@@ -248,6 +269,7 @@ def build_bus(args: argparse.Namespace) -> SimBus:
         return_delay_time=args.rdt,
         boot_time=args.boot_ms / 1000.0,
         faults=faults,
+        mount=mount,
     )
 
 
