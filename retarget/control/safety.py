@@ -100,7 +100,9 @@ class GoalCheck:
         bound, limit = self.bound, self._limit
         at0 = np.maximum(self._at_cmd, bound.pairs_at(q_from))
         at1 = bound.pairs_at(q_to)
-        low = min(float(at0.min()), float(at1.min())) if at0.size else math.inf  # no query: near the last one
+        # no query near the last one: the two ends' bounds may come from different references (the goal written
+        # last, the latest note), so the segment between them is bounded by their falls, not by the ends alone
+        low = bound.segment_bound(q_from, q_to, at0, at1)
         if low < limit:
             end = np.array(q_to)
             at1 = np.array(self.model.distances(end))  # one pose: cheap; the segment from both ends' distances
