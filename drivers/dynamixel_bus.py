@@ -61,6 +61,7 @@ import numpy as np
 from drivers import units
 from drivers.comm import GroupRead, Link, StatusPacket
 from drivers.control_table import MODEL_BY_NUMBER, VOLT_PER_UNIT, common_register, hardware_error_names
+from drivers.gripper import GripperChannel, GripperReading
 from drivers.latency import check_latency_timer
 from drivers.port import open_port
 from drivers.servo_plan import MAX_PROFILE_MS, Profile, ServoPlan, ServoSettings, plan_servos
@@ -255,6 +256,12 @@ class DynamixelBus:
         self._watchdog = None if watchdog is None else HostWatchdog(watchdog, [s.id for s in self.servos], dt=dt)
         self._joint_servos = tuple(s for s in self.servos if s.role != "gripper")
         self._gripper = next((s for s in self.servos if s.role == "gripper"), None)
+        #: the gripper's goal and readings on the tick path (set_gripper); None without a gripper
+        self._gripper_channel = (
+            GripperChannel(self.arm.gripper, self._gripper, read_every=self.watch_ticks)
+            if self._gripper is not None and self.arm.gripper is not None
+            else None
+        )
         self._primary_index = np.array(
             [next(i for i, s in enumerate(self._joint_servos) if s.joint == j and s.role == "primary")
              for j in range(arm.n_joints)]
@@ -449,6 +456,8 @@ class DynamixelBus:
         link = self._require_active()  # also refuses a second request before the first is collected
         if self._watched and (self._watch_run or self._ticks % self.watch_ticks == self.watch_ticks - 1):
             self._watch(link)  # before the request: nothing may use the bus between it and its collect
+        if self._gripper_channel is not None:
+            self._gripper_channel.service(link)  # a changed gripper goal; its state at the watch's rate
         self._pending = link.send_group_read(self._position_reads[self._use_fast])
 
     def collect_positions(self) -> np.ndarray:
@@ -584,6 +593,17 @@ class DynamixelBus:
         if self._faulted:
             raise BusError(f"bus is faulted ({self._faulted}); no more goals are sent: close it")
         return link
+
+    def set_gripper(self, closure: float) -> None:
+        """Gripper goal as closure 0 (open) .. 1 (closed) of its limits (``[gripper] closed``): stored, and written
+        on the tick path (before the next position read, when it moved by more than 0.5 %), not now."""
+        if self._gripper_channel is None:
+            raise BusError(f"arm {self.arm.name!r} has no gripper")
+        self._gripper_channel.set(closure)
+
+    def gripper_reading(self) -> GripperReading | None:
+        """The gripper's last command and reading (read every ``watch_period`` once set_gripper was called)."""
+        return None if self._gripper_channel is None else self._gripper_channel.reading
 
     def _require_gripper(self) -> ServoPlan:
         if self._gripper is None:

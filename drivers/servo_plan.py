@@ -20,6 +20,7 @@ import numpy as np
 from drivers import units
 from drivers.control_table import RETURN_DELAY_UNIT_US, DriveMode, Model, OperatingMode
 from drivers.control_table import model as lookup_model
+from drivers.gripper import gripper_registers
 from retarget.arm.model import Arm
 from retarget.errors import ConfigError
 
@@ -144,4 +145,9 @@ class ServoSettings:
             "Velocity Limit": velocity_limit,
             "Return Delay Time": self.return_delay_us // RETURN_DELAY_UNIT_US,
         }
-        return eeprom, {"Profile Acceleration": pa, "Profile Velocity": pv}
+        ram = {"Profile Acceleration": pa, "Profile Velocity": pv}
+        if s.role == "gripper" and arm.gripper is not None:  # mode 5 and its current limit (drivers.gripper)
+            g_eeprom, g_ram = gripper_registers(arm.gripper, s.model)
+            eeprom.update(g_eeprom)
+            ram.update(g_ram)
+        return eeprom, ram

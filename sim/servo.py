@@ -62,6 +62,7 @@ from drivers.control_table import model as lookup_model
 from retarget.control.clock import Clock, MonotonicClock
 from sim import rules
 from sim.hand import HandPath, rate, smoothstep_path
+from sim.obstacle import OVERLOAD_AFTER_S, OVERLOAD_SHARE, Obstacle
 from sim.physics import PWM_FULL_SCALE, Motor
 from sim.profile import Trajectory, ramp_profile, rest, time_profile, velocity_profile
 from sim.servo_writes import WriteRules
@@ -168,6 +169,9 @@ class SimServo(WriteRules):
         self.writes: deque[tuple[float, int, bytes]] = deque(maxlen=10_000)
         self._set("Goal Position", int(self._present_from_actual(self._state[0])))
         self._indirect_used = False
+        self._obstacle: Obstacle | None = None  #: a wall in the horn's way (sim.obstacle)
+        self._push = 0.0  #: signed share of stall current pushing on the wall (actual frame), 0 when free
+        self._push_since: float | None = None  #: clock time a push hard enough to overload began
         self.update()
 
     # ------------------------------------------------------------------ identity and wire settings
@@ -279,6 +283,17 @@ class SimServo(WriteRules):
         if bits & self._mem[_SHUTDOWN] and self._mem[_TORQUE_ENABLE]:
             self._torque_off()
         log.info("servo %d: hardware error 0x%02x", self.id, bits)
+
+    def block_at(self, present: float | None) -> None:
+        """Put a wall at Present Position ``present`` (pulses), on the far side from where the horn is now
+        (:mod:`sim.obstacle`); None removes it."""
+        self.update()
+        if present is None:
+            self._obstacle = None
+            return
+        wall = self._actual_from_present(float(present))
+        self._obstacle = Obstacle(wall, 1 if self._state[0] >= wall else -1)
+        self._fresh = None
 
     # ------------------------------------------------------------------ raw register access (tests)
 
@@ -516,11 +531,34 @@ class SimServo(WriteRules):
             return
         if self._mem[_TORQUE_ENABLE]:
             self._state = self._trajectory.state(now)
+            if self._obstacle is not None:
+                self._push_on_wall(self._obstacle, now)
         elif self._hand is not None:
             self._state = self._hand_state(self._hand, now)
         elif self._state[1]:
             self._state = (self._state[0], 0.0, 0.0)  # let go: it stays where it was left
         self._t = now
+
+    def _push_on_wall(self, wall: Obstacle, now: float) -> None:
+        """Hold the horn at ``wall``; while the goal lies beyond it the motor pushes, and may overload."""
+        p, v, a, touching = wall.clamp(*self._state)
+        self._state = (p, v, a)
+        goal = self._actual_from_present(self._get("Goal Position"))
+        self._push = 0.0
+        if touching and (goal - wall.actual) * wall.side < 0:
+            if self._mode() == OperatingMode.CURRENT_BASED_POSITION:
+                share = self._motor.current_share(min(abs(self._get("Goal Current")), self._get("Current Limit")))
+            else:  # the position controller winds up to full output, capped only by PWM Limit
+                share = min(1.0, self._get("PWM Limit") / PWM_FULL_SCALE)
+            self._push = -wall.side * share
+        if abs(self._push) < OVERLOAD_SHARE:
+            self._push_since = None
+        elif self._push_since is None:
+            self._push_since = now
+        elif now - self._push_since >= OVERLOAD_AFTER_S:
+            self._push_since = None
+            self._t = now
+            self._raise_hardware_error(HardwareError.OVERLOAD)
 
     def _refresh_present(self, now: float) -> None:
         mem = self._mem
@@ -545,7 +583,7 @@ class SimServo(WriteRules):
             | ((self._trajectory.shape & 3) << 4 if moving_profile else 0)
         )
         _U16.pack_into(mem, _REALTIME_TICK, int((now - self._t_origin) * 1000.0) % 32768)
-        load = self._motor.load_share(v, a) * sign if torque else 0.0
+        load = (self._push or self._motor.load_share(v, a)) * sign if torque else 0.0
         if self.model.current_unit_ma is None:
             _I16.pack_into(mem, _PRESENT_CURRENT, round(max(-1.0, min(1.0, load)) * 1000))
         else:

@@ -23,6 +23,8 @@ URL grammar::
                         the clock jumps to its arrival (default: clock=real, time.perf_counter)
       mount=ID:PULSES,...  reverse=ID,...
                         (ARM form) servos mounted off the arm file's zero, or the other way round (sim.mount)
+      block=ID:PULSES,...  an object in servo ID's way at Present Position PULSES (sim.obstacle): the horn stops
+                        there; pushing on it draws the mode's current and, too hard for too long, Overload
       drop= corrupt= delay_ms= unplug= hwerror= wire= seed=
                         faults, as documented in sim.faults (e.g. drop=0.1&seed=1, unplug=4@1.5,
                         hwerror=3:overload@2, wire=1)
@@ -51,6 +53,7 @@ from retarget.errors import ConfigError, RetargetError
 from sim.bus import ScheduledReply, SimBus
 from sim.faults import QUERY_KEYS, Faults
 from sim.mount import MOUNT_KEYS, Mounting
+from sim.obstacle import BLOCK_KEYS, blocks_from_query
 
 if TYPE_CHECKING:
     from _typeshed import ReadableBuffer
@@ -151,9 +154,9 @@ def bus_from_url(url: str, *, port_baud: int | None = None) -> SimBus:
         raise ConfigError("Expected a URL starting with sim://", key="url", value=url)
     where = parts.netloc + parts.path.rstrip("/")
     query = parse_qs(parts.query, keep_blank_values=True)
-    unknown = set(query) - _BUS_KEYS - QUERY_KEYS - MOUNT_KEYS
+    unknown = set(query) - _BUS_KEYS - QUERY_KEYS - MOUNT_KEYS - BLOCK_KEYS
     if unknown:
-        known = ", ".join(sorted(_BUS_KEYS | QUERY_KEYS | MOUNT_KEYS))
+        known = ", ".join(sorted(_BUS_KEYS | QUERY_KEYS | MOUNT_KEYS | BLOCK_KEYS))
         raise ConfigError(f"unknown option(s) {', '.join(sorted(unknown))}; known: {known}", key="url", value=url)
     if where.startswith("@"):
         if query:
@@ -187,19 +190,21 @@ def bus_from_url(url: str, *, port_baud: int | None = None) -> SimBus:
     if boot_ms is not None and not 0.0 <= boot_ms <= 60_000.0:
         raise ConfigError("Expected a number of milliseconds from 0 to 60000", path=url, key="boot_ms", value=boot_ms)
     boot = 0.0 if boot_ms is None else boot_ms / 1000.0
+    blocks = blocks_from_query(query, source=url)
     if where:
         if "ids" in query or "model" in query:
             raise ConfigError("give either an arm name or ids=/model=, not both", key="url", value=url)
-        return SimBus.from_arm(
+        bus = SimBus.from_arm(
             where, clock=clock, baud=baud, return_delay_time=rdt, boot_time=boot, faults=faults, mount=mount
         )
+        return _with_blocks(bus, blocks, url)
     if mount.ids:
         raise ConfigError("mount= and reverse= need an arm: sim://ARM?mount=...", key="url", value=url)
     ids_text = last("ids")
     if not ids_text:
         raise ConfigError("Expected sim://ARM, sim://?ids=1-6&model=..., or sim://@NAME", key="url", value=url)
     baud = baud or port_baud or 1_000_000
-    return SimBus.from_ids(
+    bus = SimBus.from_ids(
         parse_ids(ids_text),
         last("model", "XL430-W250") or "XL430-W250",
         clock=clock,
@@ -208,6 +213,16 @@ def bus_from_url(url: str, *, port_baud: int | None = None) -> SimBus:
         boot_time=boot,
         faults=faults,
     )
+    return _with_blocks(bus, blocks, url)
+
+
+def _with_blocks(bus: SimBus, blocks: dict[int, int], url: str) -> SimBus:
+    """Put the ``block=`` walls in place (sim.obstacle); ConfigError for an ID not on the bus."""
+    for dxl_id, pulses in blocks.items():
+        if dxl_id not in bus.ids:
+            raise ConfigError(f"Expected a servo ID on the bus {list(bus.ids)}", path=url, key="block", value=dxl_id)
+        bus.servo(dxl_id).block_at(pulses)
+    return bus
 
 
 class Serial(SerialBase):

@@ -1304,3 +1304,28 @@ def sim_control(address: str, command: str) -> dict:
                 break
             data += chunk
     return json.loads(data)
+
+
+# ------------------------------------------------------------------ a hand that pinches (gripper from the clip)
+PINCH_ANGLE = 48.59  #: degrees each of thumb and index turns (about Y) until their tips meet
+
+
+def pinching_hand_bvh(closed: np.ndarray, *, thumb: bool = True, frame_time: float = 1 / 30) -> str:
+    """BVH text of ``rig()`` whose left hand has a thumb (``LeftHandThumb1 > 2``, 6 units to +Z) and an index
+    (``LeftHandIndex1 > 2``, 6 units to -Z), each 8 units to the tip along +X, on a 25-unit forearm: open, the tips
+    are 12 apart; at ``closed[k]`` = 1 both turn ``PINCH_ANGLE`` toward each other and the tips meet.  ``closed``:
+    ``(n_frames,)`` 0..1.  ``thumb=False``: a middle and an index finger 2 units either side of the hand's axis
+    instead, which fold 170 degrees back toward the wrist at ``closed`` = 1 (a fist, for the curl rule)."""
+    root = rig()
+    hand = joints_in_order(root)[[j.name for j in joints_in_order(root)].index("LeftHand")]
+    first, side = ("LeftHandThumb", 6) if thumb else ("LeftHandMiddle", 2)
+    hand.children = [
+        J(f"{first}1", (3, 0, side), children=[J(f"{first}2", (5, 0, 0), end=(3, 0, 0))]),
+        J("LeftHandIndex1", (3, 0, -side), children=[J("LeftHandIndex2", (5, 0, 0), end=(3, 0, 0))]),
+    ]
+    c = np.asarray(closed, dtype=np.float64)
+    if thumb:
+        values = {(f"{first}1", "Yrotation"): PINCH_ANGLE * c, ("LeftHandIndex1", "Yrotation"): -PINCH_ANGLE * c}
+    else:
+        values = {(f"{first}1", "Zrotation"): 170.0 * c, ("LeftHandIndex1", "Zrotation"): 170.0 * c}
+    return bvh_text(root, pose(root, len(c), values), frame_time=frame_time)

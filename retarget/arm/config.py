@@ -33,6 +33,7 @@ TOML schema (every angle in the file is in DEGREES, lengths in metres; the loade
     axis = [0, 0, 1]                  # required, in the joint frame, any non-zero length
     limits = [-180, 180]              # required, [lower, upper] degrees, lower < upper
     max_velocity = 180                # required, degrees per second, > 0
+    max_acceleration = 600            # optional, degrees per second^2 (default 600: max speed in 0.3 s)
     calibration_hint = "upper arm vertical"   # optional: how to set it for the calibration pose
     servos = [                        # required, primary first, then shadows
         { id = 2, model = "XM430-W350" },
@@ -43,6 +44,9 @@ TOML schema (every angle in the file is in DEGREES, lengths in metres; the loade
     name = "gripper"                  # optional
     servo = { id = 9, model = "XL430-W250" }
     limits = [-21.7, 72.7]            # required, degrees of the servo shaft
+    closed = "lower"                  # optional: which limit is closed (default "lower")
+    current_limit = 650               # optional, mA: current-based position mode (5) with this limit
+    pwm_limit = 28.2                  # optional, % of full duty: the PWM Limit (caps the output in every mode)
 
     [mapping]                         # optional, any keys: read by retarget.mapping.config
 
@@ -67,6 +71,8 @@ runs (``MAX_LENGTH``, ``MAX_ANGLE``, ``MIN_VELOCITY``/``MAX_VELOCITY``,
 - angles (``rpy``, ``limits``, gripper ``limits``, poses): within +-360 degrees;
 - ``max_velocity``: 0.1 to 1000 deg/s (the fastest supported servo, the XL330-M288, turns
   at 618 deg/s without load);
+- ``max_acceleration``: 1 to 100000 deg/s^2; default 600 (``retarget.arm.model.DEFAULT_MAX_ACCELERATION``:
+  180 deg/s in 0.3 s, the ramp of Interbotix's xs_sdk default profile, 300 ms ramps);
 - ``baud``: one the servos and dynamixel-sdk support: 9600, 57600, 115200, 1, 2, 3
   or 4 Mbps (``retarget.arm.model.SUPPORTED_BAUDS``; not 4.5 Mbps, which the SDK
   refuses and the XL330-M288 lacks);
@@ -91,7 +97,16 @@ from typing import Any, TypeGuard
 import numpy as np
 
 from retarget.arm.geometry import read_collision, read_world
-from retarget.arm.model import SERVO_MODELS, SUPPORTED_BAUDS, Arm, Gripper, Joint, JointType, Servo
+from retarget.arm.model import (
+    MAX_CURRENT_LIMIT_MA,
+    SERVO_MODELS,
+    SUPPORTED_BAUDS,
+    Arm,
+    Gripper,
+    Joint,
+    JointType,
+    Servo,
+)
 from retarget.errors import ConfigError
 
 __all__ = ["URDF_SUFFIXES", "ArmFileReader", "arm_dirs", "is_urdf", "list_arms", "read_toml", "resolve_arm"]
@@ -104,9 +119,11 @@ _TOP_KEYS = {"name", "title", "baud", "tool", "poses", "joints", "gripper", "map
     "requires_calibration",
     "calibrate_directions",
 }
-_JOINT_KEYS = {"name", "type", "xyz", "rpy", "axis", "limits", "max_velocity", "servos", "calibration_hint"}
+_JOINT_KEYS = {"name", "type", "xyz", "rpy", "axis", "limits", "max_velocity", "servos", "calibration_hint"} | {
+    "max_acceleration"
+}
 _SERVO_KEYS = {"id", "model", "direction", "offset"}
-_GRIPPER_KEYS = {"name", "servo", "limits"}
+_GRIPPER_KEYS = {"name", "servo", "limits", "current_limit", "pwm_limit", "closed"}
 _TOOL_KEYS = {"link", "xyz", "rpy"}
 _POSE_KEYS = {"home", "rest", "calibration"}
 _MISSING = object()
@@ -115,6 +132,7 @@ _MISSING = object()
 MAX_LENGTH = 10.0  #: metres, each coordinate of an ``xyz``
 MAX_ANGLE = 360.0  #: degrees, every angle (rpy, limits, poses)
 MIN_VELOCITY, MAX_VELOCITY = 0.1, 1000.0  #: deg/s, ``max_velocity``
+MIN_ACCELERATION, MAX_ACCELERATION = 1.0, 100_000.0  #: deg/s^2, ``max_acceleration``
 DEFAULT_BAUD = 1_000_000
 
 
@@ -226,6 +244,14 @@ class ArmFileReader:
             raise self.error(f"expected a velocity from {MIN_VELOCITY:g} to {MAX_VELOCITY:g} deg/s", key, value)
         return math.radians(deg)
 
+    def acceleration(self, value: object, key: str) -> float:
+        """A ``max_acceleration`` in deg/s^2, ``MIN_ACCELERATION..MAX_ACCELERATION``, as rad/s^2."""
+        deg = self.number(value, key, positive=True)
+        if not MIN_ACCELERATION <= deg <= MAX_ACCELERATION:
+            message = f"expected an acceleration from {MIN_ACCELERATION:g} to {MAX_ACCELERATION:g} deg/s^2"
+            raise self.error(message, key, value)
+        return math.radians(deg)
+
     def baud(self, value: object, key: str = "baud") -> int:
         """A bus baud rate the servos support (``SUPPORTED_BAUDS``)."""
         if not isinstance(value, int) or isinstance(value, bool):
@@ -310,7 +336,22 @@ class ArmFileReader:
         name = self.string(t.get("name", "gripper"), f"{key}.name")
         servo = self.servo(t["servo"], f"{key}.servo")
         lo, hi = self.limits(t["limits"], f"{key}.limits")
-        return Gripper(name=name, servo=servo, lower=lo, upper=hi)
+        current = None
+        if "current_limit" in t:
+            current = self.number(t["current_limit"], f"{key}.current_limit", positive=True)
+            top = MAX_CURRENT_LIMIT_MA[servo.model]
+            if top is None:
+                message = f"{servo.model} has no current sensing: use pwm_limit"
+                raise self.error(message, f"{key}.current_limit", current)
+            if current > top:
+                raise self.error(f"expected at most {top:.0f} mA for {servo.model}", f"{key}.current_limit", current)
+        pwm = self.number(t["pwm_limit"], f"{key}.pwm_limit", positive=True) if "pwm_limit" in t else None
+        if pwm is not None and pwm > 100.0:
+            raise self.error("expected a percentage of full duty, 0 < pwm_limit <= 100", f"{key}.pwm_limit", pwm)
+        closed = self.string(t.get("closed", "lower"), f"{key}.closed")
+        if closed not in ("lower", "upper"):
+            raise self.error('expected "lower" or "upper"', f"{key}.closed", closed)
+        return Gripper(name, servo, lo, hi, current_limit=current, pwm_limit=pwm, closed=closed)
 
     def poses(
         self, value: object, joints: tuple[Joint, ...], key: str = "poses"
@@ -363,6 +404,7 @@ class ArmFileReader:
             lower=lo,
             upper=hi,
             max_velocity=self.velocity(t["max_velocity"], f"{key}.max_velocity"),
+            max_acceleration=self.acceleration(t.get("max_acceleration", 600.0), f"{key}.max_acceleration"),
             servos=self.servos(t["servos"], f"{key}.servos"),
             calibration_hint=self.string(t["calibration_hint"], f"{key}.calibration_hint")
             if "calibration_hint" in t

@@ -14,6 +14,7 @@ frozen: build them with ``retarget.load_arm``.
 from __future__ import annotations
 
 import enum
+import math
 from collections.abc import Hashable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,6 +27,14 @@ from retarget.collision.shapes import Geometry, World
 
 #: Servo models the arm descriptions may name; ``drivers.control_table`` holds their registers.
 SERVO_MODELS: tuple[str, ...] = ("XL430-W250", "XM430-W350", "XL330-M288", "XM540-W270")
+#: the highest gripper ``current_limit`` (mA) each model takes: its Current Limit register's maximum x its current
+#: unit (e-Manual; tests/drivers check it against drivers.control_table); None: no current sensing (XL430)
+MAX_CURRENT_LIMIT_MA: dict[str, float | None] = {
+    "XL430-W250": None,
+    "XM430-W350": 1193 * 2.69,
+    "XL330-M288": 1750 * 1.0,
+    "XM540-W270": 2047 * 2.69,
+}
 
 #: The bus baud rates (bps) the servos support, by their Baud Rate (8) register value 0..7: ROBOTIS e-Manual,
 #: X series control table, Baud Rate (8) (``docs/en/dxl/x/xl430-w250.md`` and siblings; summarised in
@@ -58,6 +67,12 @@ class Servo:
     offset: int = 0
 
 
+#: rad/s^2 (600 deg/s^2), a joint's acceleration limit when its arm file sets none: 180 deg/s reached in
+#: 0.3 s, the ramp of Interbotix's xs_sdk default (``modes.yaml``: ``profile_type: time``,
+#: ``profile_acceleration: 300`` ms ramps of a ``profile_velocity: 2000`` ms move)
+DEFAULT_MAX_ACCELERATION = math.radians(600.0)
+
+
 @dataclass(frozen=True)
 class Joint:
     """A revolute joint: origin (parent -> child frame), axis in the child frame, limits, servos.
@@ -77,6 +92,8 @@ class Joint:
     type: JointType = JointType.REVOLUTE
     #: how to set this joint for the calibration pose, shown by ``retarget calibrate`` (``calibration_hint``)
     calibration_hint: str = ""
+    #: rad/s^2, the loop's acceleration limit (``max_acceleration`` in the arm file, deg/s^2)
+    max_acceleration: float = DEFAULT_MAX_ACCELERATION
 
 
 @dataclass(frozen=True)
@@ -87,6 +104,28 @@ class Gripper:
     servo: Servo
     lower: float
     upper: float
+    #: mA: run it in current-based position mode (Operating Mode 5) with this Current Limit and Goal Current;
+    #: None: plain position mode (models without current sensing, XL430)
+    current_limit: float | None = None
+    #: percent of full duty: the PWM Limit, which caps the motor's output in every mode; None: the factory's
+    pwm_limit: float | None = None
+    #: which limit is closed: "lower" or "upper"
+    closed: str = "lower"
+
+    def angle(self, closure: float) -> float:
+        """Shaft angle (rad) of ``closure`` 0 (open) .. 1 (closed), clipped to 0..1.
+
+        >>> Gripper("g", Servo(9, "XM430-W350"), -1.0, 1.0, closed="upper").angle(0.75)
+        0.5
+        """
+        c = min(max(float(closure), 0.0), 1.0)
+        open_, shut = (self.lower, self.upper) if self.closed == "upper" else (self.upper, self.lower)
+        return open_ + c * (shut - open_)
+
+    def closure(self, angle: float) -> float:
+        """The inverse of :meth:`angle`: 0 (open) .. 1 (closed) of shaft angle ``angle`` (rad), not clipped."""
+        open_, shut = (self.lower, self.upper) if self.closed == "upper" else (self.upper, self.lower)
+        return (float(angle) - open_) / (shut - open_)
 
 
 @dataclass(frozen=True)
@@ -171,6 +210,11 @@ class Arm:
     def max_velocity(self) -> np.ndarray:
         """``(n_joints,) float64`` rad/s."""
         return np.array([j.max_velocity for j in self.joints], dtype=np.float64)
+
+    @property
+    def max_acceleration(self) -> np.ndarray:
+        """``(n_joints,) float64`` rad/s^2."""
+        return np.array([j.max_acceleration for j in self.joints], dtype=np.float64)
 
     @property
     def home_pose(self) -> tuple[float, ...]:

@@ -23,6 +23,8 @@ OPTIONS: dict[str, str] = {
     "max_ticks": "--max-ticks",
     "velocity_scale": "--velocity-scale",
     "lead_in_speed": "--lead-in",
+    # retarget.cli._gripper: what drives the gripper (replay), its starting closure (teleop)
+    "gripper": "--gripper",
     # retarget.mapping.MappingConfig (an arm file's [mapping] table; the flags override it)
     "mapping.side": "--side",
     "mapping.forward": "--forward",
@@ -32,6 +34,8 @@ OPTIONS: dict[str, str] = {
     "mapping.origin": "--origin",
     "mapping.floor": "--floor",
     "mapping.orientation_weight": "--orientation-weight",
+    # retarget.mapping.filter (the zero-phase low-pass of a clip's targets; --no-filter sets it to 0)
+    "cutoff_hz": "--filter-cutoff",
     # retarget.collision.CollisionModel (the CLI takes the clearance in mm and checks it first)
     "clearance": "--clearance",
     # retarget.arm.load_arm: the ends of a URDF chain

@@ -14,6 +14,7 @@ export`` shares (clip window, mapping flags); the bus options live in
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import re
 import sys
 from collections.abc import Callable
@@ -35,6 +36,8 @@ from retarget.cli._bus import (
     say,
     signals_stop,
 )
+from retarget.cli._gripper import add_replay_option as add_gripper_option
+from retarget.cli._gripper import clip_track, gripper_on_tick
 from retarget.cli._view import add_view_arguments, check_view_options, forward, live_view, serve_web
 from retarget.collision import CollisionModel
 from retarget.control import ControlLoop, LoopConfig, TickRecord
@@ -46,6 +49,7 @@ from retarget.control.telemetry import TelemetryWriter
 from retarget.errors import BusError, ConfigError
 from retarget.mapping import Targets, retarget_targets
 from retarget.mapping.config import MappingConfig
+from retarget.mapping.filter import DEFAULT_CUTOFF_HZ, filter_targets
 
 EXAMPLES = """\
 examples:
@@ -59,6 +63,8 @@ examples:
   retarget replay dance.bvh --arm robot.urdf --tip ee_link --port /dev/ttyUSB0   a URDF with several leaves
   retarget replay --port 'sim://wx250s?drop=0.05&seed=1'   a simulated bus with faults, by URL
   retarget replay dance.bvh --keep-out sphere:0.3,0,0.2,0.05 --clearance 15   stay 15 mm clear of a ball
+  retarget replay pinch.bvh --arm vx300s --telemetry run.csv   the gripper follows the hand (thumb-index pinch)
+  retarget replay dance.bvh --arm vx300s --gripper close        or a fixed closure, or --gripper track.csv
 """
 
 
@@ -100,6 +106,14 @@ def add_mapping_arguments(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--origin", default=None, metavar="X,Y,Z", help="where the human shoulder lands, metres, base frame")
     g.add_argument("--floor", default=None, metavar="Z", help="lowest target height, metres")
     g.add_argument("--orientation-weight", default=None, metavar="W", help="0 = position only; > 0 hand orientation")
+    g.add_argument(
+        "--filter-cutoff",
+        default=None,
+        metavar="HZ",
+        help=f"low-pass the clip's targets forward and backward (zero lag) at HZ, e.g. {DEFAULT_CUTOFF_HZ:g} "
+        "(default: off)",
+    )
+    g.add_argument("--no-filter", action="store_true", help="command the mapped targets unfiltered (the default)")
 
 
 _TIME = re.compile(r"^\s*(\d+(?:\.\d*)?|\.\d+)\s*(s|f)?\s*$", re.IGNORECASE)
@@ -147,6 +161,11 @@ def load_inputs(args: argparse.Namespace) -> Inputs:
     motion = retarget.load_bvh(clip)
     collision = collision_model(args, arm)
     targets = retarget_targets(motion, arm, config, collision=collision)
+    no_filter = args.no_filter or args.filter_cutoff is None
+    cutoff = 0.0 if no_filter else number(str(args.filter_cutoff), option="--filter-cutoff")
+    if not (cutoff == 0 or 0.1 <= cutoff <= 100):
+        raise ConfigError("Expected a cutoff from 0.1 to 100 Hz, or 0 (no filter)", key="cutoff_hz", value=cutoff)
+    targets = filter_targets(targets, cutoff)
     return Inputs(clip=clip, motion=motion, arm=arm, targets=targets, collision=collision)
 
 
@@ -207,6 +226,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     )
     add_clip_arguments(parser)
     parser.add_argument("--loop", action="store_true", help="wrap to --start after --end until Ctrl-C")
+    add_gripper_option(parser)
     parser.add_argument("--max-ticks", default=None, metavar="N", help="stop after N ticks of the clip")
     parser.add_argument(
         "--lead-in",
@@ -257,6 +277,8 @@ def run(args: argparse.Namespace) -> int:
         lead_in_speed=number(args.lead_in, option="--lead-in"),
         collision=inputs.collision,
     )
+    side = MappingConfig.from_table(inputs.arm.mapping, path=inputs.arm.source, overrides={"side": args.side}).side
+    gripper = clip_track(args.gripper, inputs.arm, inputs.motion, side.value)  # before the bus: errors first
     setup = None if args.dry_run else build_bus(args, inputs.arm, config)
     telemetry = None
     try:
@@ -266,8 +288,9 @@ def run(args: argparse.Namespace) -> int:
             loop.on_progress = _progress_printer(loop)
         if args.telemetry is not None:
             out = sys.stdout if args.telemetry == "-" else args.telemetry
-            telemetry = TelemetryWriter(out, inputs.arm.joint_names).open()
+            telemetry = TelemetryWriter(out, inputs.arm.joint_names, gripper=gripper is not None).open()
             loop.on_tick = telemetry
+        loop.on_tick = gripper_on_tick(gripper.at if gripper else None, setup.bus if setup else None, loop.on_tick)
         with (
             signals_stop(loop.stop) as stopped,
             live_view(args, inputs.arm, motion=inputs.motion, targets=inputs.targets, name=inputs.clip.name) as live,
@@ -291,6 +314,8 @@ def run(args: argparse.Namespace) -> int:
             telemetry.close()
         if setup is not None:
             setup.release()
+    if gripper is not None:
+        summary = dataclasses.replace(summary, gripper=gripper.rule)
     say(summary.format())  # a hung-up terminal (SIGHUP) must not turn a clean stop into a traceback
     if args.json:
         print_json(summary.to_dict())

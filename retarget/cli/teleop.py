@@ -36,6 +36,8 @@ from retarget.cli._bus import (
     say,
     signals_stop,
 )
+from retarget.cli._gripper import TELEOP_HELP as TELEOP_GRIPPER_HELP
+from retarget.cli._gripper import gripper_on_tick, parse_closure
 from retarget.cli._view import add_view_arguments, check_view_options, forward, live_view, serve_web
 from retarget.cli.options import OPTIONS
 from retarget.cli.replay import number, optional_count, optional_number
@@ -64,6 +66,8 @@ examples:
   retarget teleop --interactive --port /dev/ttyUSB0 --max-speed 0.05
   retarget teleop --stdin --telemetry run.csv < path.txt            one 'x y z' or JSON line per target
   retarget teleop --to 0.3,0,0.2 --keep-out box:0.25,-0.05,0,0.35,0.05,0.1   a box the arm keeps out of
+  retarget teleop --arm vx300s --to 0.3,0,0.2 --gripper close    and close the gripper
+  printf '0.3 0 0.2 g=0\\ng=1\\n' | retarget teleop --arm vx300s --stdin --fast   g: gripper 0 (open)..1 (closed)
 """
 
 
@@ -87,6 +91,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
     t = parser.add_argument_group("targets")
     t.add_argument("--rpy", metavar="R,P,Y", help="with --to: tool orientation, degrees (URDF roll-pitch-yaw)")
+    t.add_argument("--gripper", metavar="open|close|0..1", help=TELEOP_GRIPPER_HELP)
     t.add_argument("--frame", choices=("base", "world"), default="base", help="frame of the targets (default base)")
     t.add_argument("--base-pose", metavar="X,Y,Z[,R,P,Y]", help="the arm base in the world (m, deg); default origin")
     t.add_argument(
@@ -223,19 +228,26 @@ def run(args: argparse.Namespace) -> int:
     setup = build_bus(args, arm, config)
     source: Source | None = None
     telemetry: TelemetryWriter | None = None
-    on_tick: TelemetryWriter | None = None
+    on_tick: Callable[[TickRecord], None] | None = None
     stop = threading.Event()
     stopped = Stopped()
     try:
         gate = _gate(args, arm, setup.clock, {**opts, "collision": config.collision})
+        if args.gripper is not None:
+            if arm.gripper is None:
+                message = f"Expected an arm with a [gripper], got {arm.name}"
+                raise ConfigError(message, key="gripper", value=args.gripper)
+            gate.gripper = parse_closure(args.gripper)
         if not args.interactive:
             source = _source(args, gate).start()
         if args.telemetry is not None:
             out = sys.stdout if args.telemetry == "-" else args.telemetry
-            on_tick = telemetry = TelemetryWriter(out, arm.joint_names).open()
+            on_tick = telemetry = TelemetryWriter(out, arm.joint_names, gripper=arm.gripper is not None).open()
         check_moves(arm, config, first=None, rest=args.shutdown == "rest")  # before torque is on
         with signals_stop(stop.set) as stopped, connected(setup.bus), live_view(args, arm, name=_name(args)) as live:
             on_tick = forward(on_tick=on_tick, live=live)
+            if arm.gripper is not None:  # the latest g of the messages (or --gripper, or keys) each tick
+                on_tick = gripper_on_tick(lambda _t: gate.gripper, setup.bus, on_tick)
             if source is None:
                 result = _interactive(arm, setup, gate, config, opts, stop, on_tick)
             else:

@@ -27,7 +27,7 @@ from retarget.teleop import tool_point
 from retarget.teleop.gate import Target, TargetBounds, TargetGate, TargetRejected
 from retarget.teleop.sources import Source
 
-__all__ = ["Action", "Jog", "KeySource", "TerminalUI", "KEYS"]
+__all__ = ["Action", "GRIPPER_KEYS", "Jog", "KeySource", "TerminalUI", "KEYS"]
 
 #: key name -> (axis, sign) for the nudges
 KEYS: dict[str, tuple[int, int]] = {
@@ -46,6 +46,8 @@ KEYS: dict[str, tuple[int, int]] = {
 }
 MIN_STEP = 0.001  #: m
 MAX_STEP = 0.1  #: m
+#: gripper keys -> closure (0 open .. 1 closed): a value to go to, or a step of it
+GRIPPER_KEYS: dict[str, tuple[str, float]] = {"o": ("to", 0.0), "c": ("to", 1.0), "[": ("by", -0.1), "]": ("by", 0.1)}
 
 
 class Action(enum.Enum):
@@ -55,6 +57,7 @@ class Action(enum.Enum):
     BLOCKED = "blocked"  #: the nudge would leave the bounds; the target stayed
     STEP = "step"  #: the step size changed
     HOME = "home"  #: the target went back home
+    GRIPPER = "gripper"  #: the gripper's closure changed (``Jog.gripper``)
     QUIT = "quit"
     NONE = "none"  #: not a key of the map
 
@@ -67,10 +70,13 @@ class Jog:
     home: np.ndarray
     bounds: TargetBounds
     step: float = 0.01
+    #: the gripper's closure 0 (open) .. 1 (closed) the keys asked for; None: no gripper key yet
+    gripper: float | None = None
     message: str = field(default="", init=False)  #: the last press's effect, for the screen
 
     def press(self, key: str) -> Action:
-        """Apply one key (a name of :data:`KEYS`, ``+``, ``-``, ``h``, ``q``, ``ESC``); return what it did."""
+        """Apply one key (a name of :data:`KEYS` or :data:`GRIPPER_KEYS`, ``+``, ``-``, ``h``, ``q``, ``ESC``);
+        return what it did."""
         if key in ("q", "ESC"):
             return Action.QUIT
         if key in ("+", "="):
@@ -81,6 +87,12 @@ class Jog:
             self.step = max(self.step / 2, MIN_STEP)
             self.message = f"step {self.step * 1e3:.1f} mm"
             return Action.STEP
+        if key in GRIPPER_KEYS:
+            how, value = GRIPPER_KEYS[key]
+            closure = value if how == "to" else (self.gripper or 0.0) + value
+            self.gripper = min(1.0, max(0.0, round(closure, 6)))
+            self.message = f"gripper {self.gripper:.1f} (0 open .. 1 closed)"
+            return Action.GRIPPER
         if key == "h":
             self.target = np.array(self.home, dtype=np.float64)
             self.message = "home"
@@ -117,6 +129,8 @@ class KeySource(Source):
         if action in (Action.MOVE, Action.HOME):
             self._push(Target(self.jog.target.copy(), None, self.gate.clock.now(), self._seq))
             self._seq += 1
+        elif action is Action.GRIPPER:
+            self.gate.gripper = self.jog.gripper  # the teleop loop sends the gate's latest closure each tick
         elif action is Action.QUIT:
             self._finish()
         return action
@@ -177,6 +191,7 @@ class TerminalUI:
         jog = self.source.jog
         lines = [
             "retarget teleop (interactive)   w/s a/d r/f or arrows+PgUp/PgDn: move   +/-: step   h: home   q: quit",
+            "                                o/c: open/close the gripper   [/]: by 0.1",
             "",
             f"target   x {jog.target[0]:+.3f}  y {jog.target[1]:+.3f}  z {jog.target[2]:+.3f} m   "
             f"step {jog.step * 1e3:.1f} mm   {jog.message}",

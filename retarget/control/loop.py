@@ -174,6 +174,11 @@ class TickRecord:
     blocked: bool = False
     #: metres, the min clearance of the motion written this tick (nan without a collision model)
     min_clearance: float = math.nan
+    #: the gripper (retarget.control.gripper): closure commanded 0 (open) .. 1 (closed), the last reading's shaft
+    #: angle (rad) and current (A, or load fraction on XL430); nan without a gripper command
+    gripper_cmd: float = math.nan
+    gripper_present: float = math.nan
+    gripper_current: float = math.nan
 
 
 def run_ticks(
@@ -287,6 +292,8 @@ class _Run:
         self.source, self.target_at, self.solve = source, source.target_at, solver.solve
         self.max_ticks, self.recorder = config.max_ticks, recorder
         max_step = arm.max_velocity * config.velocity_scale * (1.0 / config.rate)  # rad per slot
+        # the acceleration limit (StepLimiter's max_accel, arm.max_acceleration) is not switched on yet: the
+        # loop's tests, teleop's instant stops and the tracking error still assume velocity-only steps (issue 14)
         self.limiter = StepLimiter(arm.lower, arm.upper, max_step, q_cmd)
         self.q_cmd = q_cmd  #: the commanded pose as an array: a new one each tick that moves
         self.target = np.full(3, np.nan)  #: the last target (held ticks report it)
@@ -345,7 +352,12 @@ class _Run:
         self.blocked = False
         if goal is None:  # hold: no IK, the goals stay
             self.recorder.series.holds += 1
-            limiter.hold()
+            if limiter.brake(k - self.last_slot):  # still moving: it brakes to rest at the acceleration limit
+                if self.check is None or self.check.allows(self.q_cmd.tolist(), limiter.q):
+                    self.q_cmd = np.array(limiter.q)
+                else:  # braking runs into a collision: stop at once
+                    limiter.q = self.q_cmd.tolist()
+                    limiter.hold()
             return 0.0, 0, True, False, False
         elapsed = k - self.last_slot
         if isinstance(goal, JointGoal):  # a pose in joint space: no IK

@@ -64,6 +64,9 @@ class RunSummary:
     #: ticks whose IK stopped short at the nearest clear pose (counted as not converged); None: no model
     ik_blocked_ticks: int | None = None
     pushed_targets: int | None = None  #: clip frames whose target was pushed out of a blocked zone; None: no model
+    #: what drove the gripper: "pinch" (thumb tip to index tip), "curl" (fingertips to wrist) of the clip's hand,
+    #: "fixed 0.5", "csv FILE"; None: not driven
+    gripper: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dict (floats rounded to 4 decimals)."""
@@ -97,6 +100,8 @@ class RunSummary:
                 f"  collisions: {self.blocked_ticks} blocked goals (not sent), {self.ik_blocked_ticks} ticks with IK "
                 f"stopped short by them{clearance}{pushed}"
             )
+        if self.gripper is not None:
+            stale.append(f"  gripper: {self.gripper}")
         return "\n".join(
             [
                 f"{head}: {self.clip} on {self.arm}: {self.frames} frames, {self.duration_s:.2f} s of motion, "

@@ -15,6 +15,9 @@ the rows of the lead-in to the clip's first pose that a replay on a bus runs bef
 that tick after the bus's retries (0: every reading is fresh); their ``_present_rad`` is the last one read.
 ``blocked`` is 1 when the tick's goal collided and was not written (the arm held the last goal);
 ``min_clearance_mm`` is the least clearance of the motion written that tick (empty without a collision model).
+With ``gripper=True`` three columns follow: ``gripper_cmd`` (closure commanded, 0 open .. 1 closed),
+``gripper_present_rad`` (the last reading of its shaft, read every watch period) and ``gripper_current_a``
+(its Present Current, A; on XL430 the Present Load fraction); empty before the first command or reading.
 
     with TelemetryWriter("run.csv", arm.joint_names) as telemetry:
         ControlLoop(arm, targets, on_tick=telemetry).run(bus)
@@ -35,8 +38,11 @@ FLAG_COLUMNS = ("clamped", "velocity_limited", "overrun", "bus_retries", "lead_i
                 "min_clearance_mm")  # fmt: skip
 
 
-def telemetry_columns(joint_names: Sequence[str]) -> list[str]:
-    """The header of a telemetry CSV for an arm with these joints."""
+GRIPPER_COLUMNS = ("gripper_cmd", "gripper_present_rad", "gripper_current_a")
+
+
+def telemetry_columns(joint_names: Sequence[str], *, gripper: bool = False) -> list[str]:
+    """The header of a telemetry CSV for an arm with these joints (and ``GRIPPER_COLUMNS`` with ``gripper``)."""
     return [
         "time_s",
         "clip_time_s",
@@ -53,6 +59,7 @@ def telemetry_columns(joint_names: Sequence[str]) -> list[str]:
         "compute_ms",
         "bus_ms",
         *FLAG_COLUMNS,
+        *(GRIPPER_COLUMNS if gripper else ()),
     ]
 
 
@@ -63,10 +70,11 @@ class TelemetryWriter:
     opened (truncated) on ``__enter__``/``open()``; a stream is left open on close.
     """
 
-    def __init__(self, target: str | os.PathLike[str] | IO[str], joint_names: Sequence[str]):
+    def __init__(self, target: str | os.PathLike[str] | IO[str], joint_names: Sequence[str], *, gripper: bool = False):
         self.target = target
         self.joint_names = tuple(joint_names)
-        self.columns = telemetry_columns(self.joint_names)
+        self.gripper = gripper
+        self.columns = telemetry_columns(self.joint_names, gripper=gripper)
         self.rows = 0
         self._file: IO[str] | None = None
         self._owns = False
@@ -119,7 +127,13 @@ class TelemetryWriter:
             f"{r.ik_error * 1e3:.4f},{r.ik_sweeps},{int(r.ik_converged)},"
             f"{(r.compute_time + r.bus_time) * 1e3:.4f},{r.compute_time * 1e3:.4f},{r.bus_time * 1e3:.4f},"
             f"{int(r.clamped)},{int(r.velocity_limited)},{int(r.overrun)},{r.bus_retries},{int(r.lead_in)},{r.stale},"
-            f"{int(r.blocked)},{clearance}\n"
+            f"{int(r.blocked)},{clearance}{self._gripper_cells(r)}\n"
         )
         self._file.flush()
         self.rows += 1
+
+    def _gripper_cells(self, r: TickRecord) -> str:
+        if not self.gripper:
+            return ""
+        cells = (r.gripper_cmd, r.gripper_present, r.gripper_current)
+        return "".join("," if math.isnan(v) else f",{v:.6f}" for v in cells)

@@ -27,7 +27,6 @@ This module is math only: it imports neither ``drivers``, ``sim``, ``serial`` no
 from __future__ import annotations
 
 import collections
-import enum
 import json
 import logging
 import math
@@ -45,6 +44,8 @@ from retarget.arm.model import Arm
 from retarget.control.clock import Clock
 from retarget.errors import ConfigError
 from retarget.mapping.workspace import arm_geometry
+from retarget.teleop.gripper import split_gripper
+from retarget.teleop.rejects import Reject, TargetRejected
 
 if TYPE_CHECKING:
     from retarget.collision import CollisionModel
@@ -67,37 +68,6 @@ log = logging.getLogger(__name__)
 
 MAX_MESSAGE_BYTES = 1024  #: default size limit of one line or datagram
 MAX_RPY_DEG = 360.0  #: every roll, pitch and yaw (of a target or of the base pose) is within +-360 degrees
-
-
-class Reject(enum.Enum):
-    """Why a message was rejected (the key of the counts)."""
-
-    OVERSIZE = "oversize"
-    MALFORMED = "malformed"
-    NON_FINITE = "non_finite"
-    OUT_OF_BOX = "out_of_box"
-    OUT_OF_REACH = "out_of_reach"
-    BLOCKED = "blocked"  #: below the table, inside a keep-out zone or the base (a collision model's blocked zones)
-
-
-class TargetRejected(ConfigError):
-    """A message that is not an acceptable target; ``reason`` says why.  ``key`` names the input (a parameter
-    such as ``position``, or ``target`` for a message of a stream)."""
-
-    def __init__(self, reason: Reject, message: str, *, key: str = "target", value: object = None):
-        self.reason = reason
-        if value is None:
-            super().__init__(message, key=key)
-        else:
-            super().__init__(message, key=key, value=_short(value))
-
-
-def _short(value: object, limit: int = 60) -> object:
-    if isinstance(value, bytes) and len(value) > limit:
-        return value[:limit] + b"..."
-    if isinstance(value, str) and len(value) > limit:
-        return value[:limit] + "..."
-    return value
 
 
 # --------------------------------------------------------------------------------------------------- parsing
@@ -372,6 +342,8 @@ class TargetGate:
         self.rejects = counter if counter is not None else RejectCounter()
         self.accepted = 0
         self._lock = threading.Lock()
+        #: the latest gripper closure a message asked for (its ``g`` field, retarget.teleop.gripper); None: none yet
+        self.gripper: float | None = None
 
     def convert(
         self, message: Message, *, key: str = "target", blocked: bool = True
@@ -388,10 +360,16 @@ class TargetGate:
     def accept(self, data: str | bytes, *, source: str = "") -> Target | None:
         """One raw message -> a :class:`Target`, or None (blank, or rejected and counted)."""
         try:
-            message = parse_message(data, max_bytes=self.max_bytes)
+            if len(data) > self.max_bytes:  # before any parse, as parse_message would
+                parse_message(data, max_bytes=self.max_bytes)
+            closure, rest = split_gripper(data)
+            message = None if rest is None else parse_message(rest, max_bytes=self.max_bytes)
+            if message is not None:
+                position, rotation = self.convert(message)
+            if closure is not None:  # a valid message only: a rejected target does not close the gripper either
+                self.gripper = closure
             if message is None:
                 return None
-            position, rotation = self.convert(message)
         except TargetRejected as exc:
             self.rejects.add(exc, source)
             return None

@@ -226,3 +226,18 @@ def test_fuzz_the_arm_reader_every_mutant_loads_and_runs_or_names_a_key(tmp_path
             loaded += 1
         assert time.perf_counter() - start < CASE_SECONDS, f"case {case} ({name}) took too long"
     assert loaded > 40 and rejected > 100, (loaded, rejected)
+
+
+@pytest.mark.parametrize(
+    ("arm_name", "line", "message"),
+    [
+        ("wx250s", "current_limit = 500", r"gripper\.current_limit: XL430-W250 has no current sensing: use pwm_limit"),
+        ("vx300s", "current_limit = 5380", r"gripper\.current_limit: expected at most 3209 mA for XM430-W350"),
+    ],
+    ids=["no-current-sensing", "above-the-register"],
+)
+def test_a_gripper_current_limit_the_servo_cannot_take_is_refused_at_load(tmp_path, arm_name, line, message):
+    text = re.sub(r"(?m)^current_limit = .*$\n?", "", bundled(arm_name))
+    text = text.replace('[gripper]\nname = "gripper"\n', f'[gripper]\nname = "gripper"\n{line}\n')
+    with pytest.raises(ConfigError, match=message):
+        load_arm(write(tmp_path, text))

@@ -90,3 +90,17 @@ def test_key_source_keeps_only_the_newest(arm, jog):
     assert not src.closed
     src.press("q")
     assert src.closed
+
+
+@pytest.mark.parametrize(
+    ("keys", "closure"),
+    [("c", 1.0), ("o", 0.0), ("]", 0.1), ("]]]", 0.3), ("c[[", 0.8), ("[", 0.0), ("c]", 1.0)],
+    ids=["close", "open", "step-up", "three-steps", "close-then-down", "floor-at-open", "ceiling-at-closed"],
+)
+def test_gripper_keys_set_the_gate_closure_and_never_move_the_target(arm, jog, keys, closure):
+    gate = TargetGate(TargetBounds.for_arm(arm), clock=VirtualClock(0.0))
+    src = KeySource(gate, jog)
+    for key in keys:
+        assert src.press(key) is Action.GRIPPER
+    assert gate.gripper == pytest.approx(closure) and jog.gripper == pytest.approx(closure)
+    assert src.drain() == [] and jog.message.startswith("gripper")
