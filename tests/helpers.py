@@ -898,21 +898,24 @@ def brute_force_min_clearance(arm, q, world=None, samples: int = 24) -> dict[str
     return out
 
 
-def brute_force_min_clearances(arm, Q, world=None, samples: int = 16, chunk: int = 500) -> np.ndarray:
+def brute_force_min_clearances(arm, Q, world=None, spacing: float = 0.008, chunk: int = 500) -> np.ndarray:
     """Independent check of ``retarget.collision`` over many poses: the smallest pair clearance (metres) of each
     pose of ``Q`` ``(n_poses, n_joints)`` radians, ``(n_poses,)``; pairs as ``CollisionModel.pair_names``.
 
     Its own FK, vectorised over the poses (``chunk`` at a time: the property tests check ten thousand).  A capsule
-    is ``samples`` points on its axis and its radius; a box is a 5 x 5 x 5 grid of points and, against points, its
-    exact signed distance in its own frame.  Sampling over-estimates a distance by at most half a sample spacing,
-    so a pose found within the clearance truly is."""
+    is points on its axis at most ``spacing`` metres apart, and its radius; a box is a 5 x 5 x 5 grid of points and,
+    against points, its exact signed distance in its own frame.  Sampling can only over-estimate a positive
+    distance, so a pose found within the clearance truly is (depths of overlap are measured unlike the model's).
+    Resolution: exact against the table (a capsule's lowest point is an end); at most ``spacing / 2`` (4 mm) too
+    far for a capsule against a box link or a keep-out zone; at most ``spacing`` (8 mm) for two capsules; box
+    against box to its 5-point grid.  So, with the 10 mm clearance, a pose with a capsule touching anything (or
+    within 2 mm of it) is always caught."""
     from retarget.arm.kinematics import axis_angle_matrix, transform
     from retarget.collision import Box, CollisionModel
 
     Q = np.atleast_2d(np.asarray(Q, dtype=np.float64))
     model = CollisionModel.for_arm(arm, world=world)
     links = {link.name: link for link in model.geometry.links}
-    t = np.linspace(0.0, 1.0, samples)
     g = np.linspace(-1.0, 1.0, 5)
     grid = np.stack(np.meshgrid(g, g, g), -1).reshape(-1, 3)
 
@@ -934,8 +937,11 @@ def brute_force_min_clearances(arm, Q, world=None, samples: int = 16, chunk: int
                 local, r = np.asarray(link.shape.center) + grid * np.asarray(link.shape.half_size), 0.0
             else:
                 a, b = np.asarray(link.shape.a), np.asarray(link.shape.b)
+                t = np.linspace(0.0, 1.0, max(2, math.ceil(np.linalg.norm(b - a) / spacing) + 1))
                 local, r = a + t[:, None] * (b - a), link.shape.radius
             clouds[name] = (np.einsum("nij,kj->nki", T[:, :3, :3], local) + T[:, None, :3, 3], r)
+
+        squares = {name: np.einsum("nki,nki->nk", p, p) for name, (p, _) in clouds.items()}
 
         def to_box(points, name):  # signed distance of base-frame points to box link `name`
             T, box = frames[links[name].frame], links[name].shape
@@ -958,9 +964,10 @@ def brute_force_min_clearances(arm, Q, world=None, samples: int = 16, chunk: int
                     d = np.linalg.norm(pu - np.asarray(zone.center), axis=-1).min(axis=1) - ru - zone.radius
             elif isinstance(links[v].shape, Box):
                 d = to_box(pu, v).min(axis=1) - ru
-            else:
+            else:  # every point pair's squared distance, |a|^2 + |b|^2 - 2 a.b, batched over the poses
                 pv, rv = clouds[v]
-                d = np.linalg.norm(pu[:, :, None] - pv[:, None], axis=-1).min(axis=(1, 2)) - ru - rv
+                d2 = squares[u][:, :, None] + squares[v][:, None] - 2 * np.matmul(pu, pv.transpose(0, 2, 1))
+                d = np.sqrt(np.maximum(d2.min(axis=(1, 2)), 0.0)) - ru - rv
             worst = np.minimum(worst, d + model.geometry.nest_depth(u, v))
         return worst
 

@@ -205,18 +205,45 @@ def test_a_rest_move_with_no_safe_route_is_refused(arm):
 # ------------------------------------------------------------------------------------------ every shared clip
 
 
+#: seconds of each clip replayed on the simulated bus (the whole clips, 107 s a side, take ~1 ms a tick there: too
+#: slow for the suite); the whole of every clip is replayed offline (the same loop, no bus) below
+BUS_SECONDS = 2.0
+
+
+def clip_targets(arm, model, clip, side):
+    motion = retarget.load_bvh(clip)
+    config = MappingConfig.from_table(arm.mapping, overrides={"side": side.value})
+    return motion, retarget_targets(motion, arm, config, collision=model)
+
+
+@pytest.mark.parametrize("side", [Side.LEFT, Side.RIGHT], ids=["left", "right"])
+@pytest.mark.parametrize("clip", shared_clip_params())
+def test_every_whole_clip_plays_offline_without_a_blocked_goal_written(arm, clip, side):
+    """The whole clip through the tick loop without a bus (as a dry run): every goal it would write clear, by the
+    independent brute-force check, and the loop's own figures agree."""
+    model = CollisionModel.for_arm(arm)
+    motion, targets = clip_targets(arm, model, clip, side)
+    records: list[TickRecord] = []
+    summary = ControlLoop(arm, targets, config=LoopConfig(collision=model), clock=VirtualClock(),
+                          on_tick=records.append).run(None)  # fmt: skip
+    last = (motion.n_frames - 1) / motion.fps  # the whole clip, to its last frame, a tick per slot
+    assert records[-1].clip_time == pytest.approx(last, abs=0.01) and len(records) >= last * LoopConfig().rate
+    assert summary.min_clearance_mm >= model.clearance * 1e3
+    assert all(r.min_clearance >= model.clearance for r in records if not r.blocked)
+    written = np.array([r.q_cmd for r in records if not r.blocked])
+    assert np.all(brute_force_min_clearances(arm, written) >= model.clearance - 1e-9)
+
+
 @pytest.mark.parametrize("side", [Side.LEFT, Side.RIGHT], ids=["left", "right"])
 @pytest.mark.parametrize("clip", shared_clip_params())
 def test_every_clip_plays_on_the_bus_without_a_blocked_goal_sent(arm, sim_bus, clip, side):
     from drivers import DynamixelBus
 
     model = CollisionModel.for_arm(arm)
-    motion = retarget.load_bvh(clip)
-    config = MappingConfig.from_table(arm.mapping, overrides={"side": side.value})
-    targets = retarget_targets(motion, arm, config, collision=model)
+    _, targets = clip_targets(arm, model, clip, side)
     simbus, url, clock = sim_bus()
     records: list[TickRecord] = []
-    loop = ControlLoop(arm, targets, config=LoopConfig(collision=model, end=2.0), clock=clock,
+    loop = ControlLoop(arm, targets, config=LoopConfig(collision=model, end=BUS_SECONDS), clock=clock,
                        on_tick=records.append)  # fmt: skip
     with DynamixelBus(arm, url, clock=clock, shutdown="hold") as bus:
         summary = loop.run(bus)
