@@ -303,6 +303,26 @@ class OnePose:
         pts = X.transpose(2, 0, 1)[near].tolist()
         return all(self._exact(k, p) >= clearance for k, p in zip(near.tolist(), pts, strict=True))
 
+    def bounds(self, q: np.ndarray, reach: float) -> np.ndarray:
+        """Lower bounds of every pair's clearance, metres, in the internal order (a shared buffer: copy it at once):
+        exact for each pair whose bounding-box bound is below ``reach`` (and every table pair), at least ``reach``
+        for the others.  Cheaper than :meth:`values` when few pairs come near ``reach``."""
+        self._frames_and_points(q)
+        res, ms, mb = self._res, self._ms, self._mb
+        if self._mt:
+            np.subtract(self._buf.take(self._tab_idx).min(axis=0), self._tab_r, out=res[ms + mb :])
+        if self._lb_off.size:
+            X, gsq = self._gaps()
+            lb = res[: ms + mb]
+            np.sqrt(gsq, out=lb)
+            lb *= 0.5
+            lb -= self._lb_off  # a box pair whose segment touches its box has gap 0: below reach, measured
+            near = np.flatnonzero(lb < reach)
+            if near.size:
+                for k, p in zip(near.tolist(), X.transpose(2, 0, 1)[near].tolist(), strict=True):
+                    res[k] = self._exact(k, p)
+        return res
+
     # -- one pose -----------------------------------------------------------------------------------------------
     def values(self, q: np.ndarray, cutoff: float | None = None) -> np.ndarray:
         """Every pair's clearance, metres, in the internal order (a shared buffer: copy or reduce it at once).

@@ -356,6 +356,23 @@ class CollisionModel(TargetPoints):
         out = self._distances(Q)
         return out[0] if np.ndim(q) == 1 else out
 
+    def pair_bounds(self, q: np.ndarray | Sequence[float], reach: float) -> np.ndarray:
+        """Lower bounds of every pair's signed clearance for one pose ``q`` ``(n_joints,)`` radians, metres
+        ``(n_pairs,)`` as :attr:`pair_names`: exact (as :meth:`distances`) for each pair that may be closer than
+        ``reach`` metres, at least ``reach`` for the others; so the min is exact when below ``reach``.
+
+        >>> import retarget
+        >>> model = CollisionModel.for_arm(retarget.load_arm("wx250s"))
+        >>> home = model.arm.home
+        >>> bool((model.pair_bounds(home, 0.04) <= model.distances(home) + 1e-12).all())
+        True
+        """
+        one = self._one_pose(q)
+        if one is None:
+            raise ValueError(f"Expected one pose of {self._n} joint angles, got shape {np.shape(q)}")
+        out: np.ndarray = self._one.bounds(one, float(reach))[self._one.perm]
+        return out
+
     def _distances(self, Q: np.ndarray) -> np.ndarray:
         rots, origins = self._frames(Q)
         f = self._cap_frame

@@ -23,7 +23,7 @@ import numpy.typing as npt
 
 from retarget.control.source import JointGoal
 from retarget.errors import ConfigError
-from retarget.ik.collide import shared_bound
+from retarget.ik.collide import HORIZON, shared_bound
 
 if TYPE_CHECKING:
     from retarget.collision import CollisionModel
@@ -80,7 +80,7 @@ class GoalCheck:
     from its ends' (:class:`~retarget.ik.collide.ClearanceBound`); only near a contact is it sampled
     (``CollisionModel.segment_clear``)."""
 
-    __slots__ = ("model", "clearance", "bound", "_segment_clear", "_limit", "_at_cmd")
+    __slots__ = ("model", "clearance", "bound", "_segment_clear", "_limit", "_reach", "_at_cmd", "_cmd_state", "_memo")
 
     def __init__(self, model: CollisionModel, q_start: npt.NDArray[np.float64]):
         self.model = model
@@ -89,23 +89,45 @@ class GoalCheck:
         self.clearance = float(d.min()) if d.size else math.inf
         self.bound = shared_bound(model)
         self.bound.note(q0.tolist(), d)
-        self._at_cmd = np.array(d)  #: a lower bound of every pair's distance at the goal written (n_pairs,)
+        #: a lower bound of every pair's distance at the goal written (n_pairs,); None: that of :attr:`_cmd_state`
+        self._at_cmd: np.ndarray | None = np.array(d)
+        self._cmd_state = self.bound.state  #: the note the goal written was proven clear from (when _at_cmd is None)
         self._segment_clear = model.segment_clear
         self._limit = float(model.clearance)
+        self._reach = self._limit + HORIZON
+        #: the last goal accepted on the fast path, the note it was bounded from and its bound (the next move's start)
+        self._memo: tuple[object, list[float], float] = (None, [], -math.inf)
 
     def allows(self, q_from: Sequence[float], q_to: Sequence[float]) -> bool:
         """Whether the segment ``q_from`` -> ``q_to`` (rad) keeps the clearance; sets :attr:`clearance` to its min
         clearance (or a lower bound of it, near the last segment checked: :class:`~retarget.ik.collide.
         ClearanceBound`) when it does (a blocked goal is not written: the clearance stays that of the pose held)."""
         bound, limit = self.bound, self._limit
-        at0 = np.maximum(self._at_cmd, bound.pairs_at(q_from))
+        # the fast path: both ends bounded from the last note alone (a bound from one reference is concave along a
+        # straight segment, so its least over the segment is at an end)
+        state, (memo_state, memo_q, memo_low) = bound.state, self._memo
+        low = memo_low if memo_state is state and memo_q == list(q_from) else bound.quick(q_from)
+        if low >= limit:
+            low_to = bound.quick(q_to)
+            if low_to >= limit:
+                self.clearance = min(low, low_to)
+                self._at_cmd, self._cmd_state = None, state
+                self._memo = (state, list(q_to), low_to)
+                return True
+        low = min(bound.quick_previous(q_from), bound.quick_previous(q_to))  # the same from the note before
+        if low >= limit:
+            self.clearance = low
+            self._at_cmd, self._cmd_state = None, bound.previous_state
+            return True
+        prior = self._at_cmd if self._at_cmd is not None else bound.pairs_at(q_from, self._cmd_state)
+        at0 = np.maximum(prior, bound.pairs_at(q_from))
         at1 = bound.pairs_at(q_to)
         # no query near the last one: the two ends' bounds may come from different references (the goal written
         # last, the latest note), so the segment between them is bounded by their falls, not by the ends alone
         low = bound.segment_bound(q_from, q_to, at0, at1)
         if low < limit:
             end = np.array(q_to)
-            at1 = np.array(self.model.distances(end))  # one pose: cheap; the segment from both ends' distances
+            at1 = np.array(self.model.pair_bounds(end, self._reach))  # one pose: cheap; exact near the clearance
             bound.note(q_to, at1)  # the next goals near it need no query
             low = bound.segment_bound(q_from, q_to, at0, at1)
             if low < limit:  # near a contact: sample the segment

@@ -24,6 +24,7 @@ Arrays: ``q`` ``(n_joints,)`` float64 radians; targets ``(3,)`` metres, base fra
 from __future__ import annotations
 
 import math
+import operator
 import weakref
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, Protocol
@@ -76,6 +77,11 @@ _EPS2 = 1e-16  #: as in ccd: below this the joint cannot move the tool toward th
 _MAX_CHECKS = 60  #: a blocked re-solve stops after this many (batched) checks: a tick's budget, not a search
 _BACK_OFF_SWEEPS = 8  #: the sweep budget of each free solve of the back-off (warm from the seed: a few do)
 _MAX_SWEEPS = 4  #: and after this many sweeps (it slides along an obstacle; the next tick goes on from there)
+#: metres beyond the clearance within which a query measures a pair exactly (farther ones keep a cheap lower bound
+#: of at least this: ``CollisionModel.pair_bounds``)
+HORIZON = 0.01
+_SINGLES = 3  #: :meth:`ClearanceBound.quick` bounds this many of the nearest pairs one by one, the rest in bands:
+_BANDS = np.array([0.0, 0.01, 0.03, 0.1])  #: where they start, metres beyond the next nearest pair's distance
 
 
 class ClearanceBound:
@@ -89,7 +95,9 @@ class ClearanceBound:
     distance falls by at most ``sum_{a <= j < b} |q_j - q_ref_j| L_j``.  After :meth:`note` of ``q_ref`` with
     its pair distances, :meth:`lower_bound` of ``q`` is the smallest pair distance minus its fall: when it is
     still at least the clearance, ``q`` is clear without a query; and so is every pose of a straight joint-space
-    segment whose two ends are (the bound is convex along the segment).  A few small numpy operations.
+    segment whose two ends are (the bound is convex along the segment).  A few small numpy operations;
+    :meth:`quick` is a looser bound of a few plain-float operations (the nearest pairs one by one, the rest as
+    bands of distance: each band's least distance less its greatest levers' fall), enough far from a contact.
 
     >>> import retarget
     >>> from retarget.collision import CollisionModel
@@ -103,7 +111,7 @@ class ClearanceBound:
     True
     """
 
-    __slots__ = ("_levers", "_state")
+    __slots__ = ("_levers", "_state", "_quick", "_previous")
 
     def __init__(self, model: CollisionModel):
         from retarget.collision import Box  # the shapes' types (the collision package never imports this one)
@@ -129,21 +137,76 @@ class ClearanceBound:
         self._levers = levers  #: ``(n_pairs, n_joints)`` metres per radian
         #: the last pose noted ``(n_joints,)`` and its pair distances ``(n_pairs,)``; one tuple, replaced whole
         self._state: tuple[np.ndarray, np.ndarray] | None = None
+        #: the last pose noted as floats and its groups' (least distance, greatest lever per joint): see quick
+        self._quick: tuple[list[float], list[tuple[float, list[float]]]] = ([], [(-math.inf, [])])
+        #: the note before the last (:attr:`state`, quick groups): a motion that swings back may be near it
+        self._previous: tuple[tuple[np.ndarray, np.ndarray] | None, tuple[list[float], list[Any]]] = (None, self._quick)
+
+    @property
+    def previous_state(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The note before the last (as :attr:`state`; None: fewer than two notes)."""
+        return self._previous[0]
+
+    @property
+    def state(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The last note: its pose ``(n_joints,)`` rad and pair distances ``(n_pairs,)`` metres (None: no note)."""
+        return self._state
 
     def note(self, q: Sequence[float] | np.ndarray, distances: np.ndarray) -> None:
         """Pose ``q`` (rad) was checked: ``distances`` ``(n_pairs,)`` metres, every pair's (lower bounds will do)."""
-        self._state = (np.array(q, dtype=np.float64), np.array(distances, dtype=np.float64))
+        ref, d = np.array(q, dtype=np.float64), np.array(distances, dtype=np.float64)
+        self._previous = (self._state, self._quick)
+        self._state = (ref, d)
+        order = np.argsort(d, kind="stable")
+        ds, ls = d[order], self._levers[order]
+        near = ds.tolist()
+        groups = list(zip(near[:_SINGLES], ls[:_SINGLES].tolist(), strict=False))
+        rest = ds[_SINGLES:]
+        if rest.size:  # the rest in bands (contiguous: sorted), each its least distance and greatest levers
+            cuts = np.searchsorted(rest, rest[0] + _BANDS).tolist()
+            starts = sorted({c for c in cuts if c < rest.size})
+            levers = np.maximum.reduceat(ls[_SINGLES:], starts, axis=0).tolist()
+            groups += [(near[_SINGLES + i], row) for i, row in zip(starts, levers, strict=True)]
+        self._quick = (ref.tolist(), groups)
+
+    def quick(self, q: Sequence[float] | np.ndarray) -> float:
+        """A lower bound of the min clearance (metres) of pose ``q`` (rad), at most :meth:`lower_bound`'s, in plain
+        floats (about a microsecond); ``-inf`` before the first :meth:`note`, ``inf`` without pairs."""
+        return self._quick_from(self._quick, q)
+
+    def quick_previous(self, q: Sequence[float] | np.ndarray) -> float:
+        """:meth:`quick` from the note before the last (``-inf`` before the second note)."""
+        return self._quick_from(self._previous[1], q)
+
+    @staticmethod
+    def _quick_from(table: tuple[list[float], list[Any]], q: Sequence[float] | np.ndarray) -> float:
+        ref, groups = table
+        if not ref:
+            return -math.inf if groups else math.inf
+        moves = [abs(a - b) for a, b in zip(q, ref, strict=True)]
+        low = math.inf
+        mul = operator.mul
+        for d, levers in groups:
+            v = d - sum(map(mul, levers, moves))
+            if v < low:
+                low = v
+        return low
 
     def lower_bound(self, q: Sequence[float] | np.ndarray) -> float:
         """A lower bound of the min clearance (metres) of pose ``q`` (rad); ``-inf`` before the first :meth:`note`."""
         at = self.pairs_at(q)
         return float(at.min()) if at.size else math.inf
 
-    def pairs_at(self, q: Sequence[float] | np.ndarray) -> np.ndarray:
-        """A lower bound of every pair's distance in pose ``q`` ``(n_pairs,)`` metres (``-inf`` before a note)."""
-        state = self._state
+    def pairs_at(
+        self, q: Sequence[float] | np.ndarray, state: tuple[np.ndarray, np.ndarray] | None | bool = True
+    ) -> np.ndarray:
+        """A lower bound of every pair's distance in pose ``q`` ``(n_pairs,)`` metres (``-inf`` before a note),
+        from the last note, or from ``state`` (an earlier :attr:`state`) when given."""
+        if state is True:
+            state = self._state
         if state is None:
             return np.full(len(self._levers), -math.inf)
+        assert state is not False  # noqa: S101 - only True or a state
         ref, d = state
         fall: np.ndarray = d - self._levers @ np.abs(np.asarray(q, dtype=np.float64) - ref)
         return fall
@@ -184,15 +247,23 @@ class CollisionGuard:
         self.back_off = int(back_off)
         self.clearance = float(model.clearance)
         self.bound = shared_bound(model)  #: skips the check of a result near the last pose queried
+        self._reach = self.clearance + HORIZON
 
     def clear(self, q: Sequence[float] | np.ndarray) -> tuple[bool, float]:
         """Whether pose ``q`` (radians) keeps the clearance, and its min clearance (metres; a lower bound when the
         pose is near the last one queried: no query then)."""
-        m = self.bound.lower_bound(q)
+        bound = self.bound
+        m = bound.quick(q)
         if m >= self.clearance:
             return True, m
-        d = self.model.distances(np.array(q))
-        self.bound.note(q, d)
+        m = bound.lower_bound(q)
+        if m >= self.clearance:
+            return True, m
+        m = bound.quick_previous(q)  # (the motion may have swung back near the note before)
+        if m >= self.clearance:
+            return True, m
+        d = self.model.pair_bounds(np.array(q), self._reach)  # exact near the clearance: its min is, when below
+        bound.note(q, d)
         m = float(d.min()) if d.size else math.inf
         return m >= self.clearance, m
 

@@ -100,3 +100,27 @@ def test_an_orientation_target_is_checked_too(wx):
     solver = CCDSolver(wx, collision=model, max_iterations=200)
     result = solver.solve([0.3, 0.0, 0.2], wx.home, T[:3, :3])
     assert result.blocked and not result.converged and model.is_clear(result.q)
+
+
+@pytest.mark.parametrize("arm_name", ["wx250s", "vx300s", "koch"])
+def test_the_bounds_never_exceed_the_true_clearance_near_a_noted_pose(arm_name):
+    """Seeded property: from one noted pose, quick(q) <= lower_bound(q) <= the model's min clearance of q, for
+    poses near it and far from it; pair_bounds never exceeds distances and is exact below its reach."""
+    from retarget.ik.collide import ClearanceBound
+
+    arm = load_arm(arm_name)
+    model = CollisionModel.for_arm(arm, world=World(keep_out=(Sphere((0.3, 0.0, 0.2), 0.05),)))
+    bound = ClearanceBound(model)
+    rng = np.random.default_rng(7)
+    for _ in range(40):
+        ref = rng.uniform(arm.lower, arm.upper) * 0.6
+        bound.note(ref, model.distances(ref))
+        for scale in (0.002, 0.02, 0.2):
+            q = np.clip(ref + rng.normal(0.0, scale, arm.n_joints), arm.lower, arm.upper)
+            exact = model.distances(q)
+            assert bound.quick(q) <= bound.lower_bound(q) + 1e-12 <= float(exact.min()) + 2e-12
+            reach = model.clearance + 0.01
+            pairs = model.pair_bounds(q, reach)
+            assert np.all(pairs <= exact + 1e-12)
+            near = exact < reach
+            np.testing.assert_allclose(pairs[near], exact[near], atol=1e-12)
