@@ -352,12 +352,7 @@ class _Run:
         self.blocked = False
         if goal is None:  # hold: no IK, the goals stay
             self.recorder.series.holds += 1
-            if limiter.brake(k - self.last_slot):  # still moving: it brakes to rest at the acceleration limit
-                if self.check is None or self.check.allows(self.q_cmd.tolist(), limiter.q):
-                    self.q_cmd = np.array(limiter.q)
-                else:  # braking runs into a collision: stop at once
-                    limiter.q = self.q_cmd.tolist()
-                    limiter.hold()
+            limiter.hold()
             return 0.0, 0, True, False, False
         elapsed = k - self.last_slot
         if isinstance(goal, JointGoal):  # a pose in joint space: no IK

@@ -361,12 +361,11 @@ class CCDSolver:
         ...
         ValueError: Expected target of shape (3,), got (2,)
         """
-        guard = self._guard
-        if guard is None:
-            return self._solve_free(target, q0, rotation, tolerance=tolerance, max_iterations=max_iterations,
-                                    max_step=max_step)  # fmt: skip
         result = self._solve_free(target, q0, rotation, tolerance=tolerance, max_iterations=max_iterations,
                                   max_step=max_step)  # fmt: skip
+        guard = self._guard
+        if guard is None:
+            return result
         clear, m = guard.check(result.q)
         if clear:
             return IKResult(result.q, result.error, result.iterations, result.converged, result.orientation_error,
