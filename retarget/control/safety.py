@@ -23,7 +23,7 @@ import numpy.typing as npt
 
 from retarget.control.source import JointGoal
 from retarget.errors import ConfigError
-from retarget.ik.collide import HORIZON, shared_bound
+from retarget.ik.bound import HORIZON, shared_bound
 
 if TYPE_CHECKING:
     from retarget.collision import CollisionModel
@@ -77,7 +77,7 @@ class GoalCheck:
     """Checks each tick's goal against ``model`` (see the module docstring), starting from the pose ``q_start``
     (rad); ``clearance`` is the min clearance (metres) of the last segment written, or a lower bound of it (at
     first: of ``q_start``).  Most ticks need no query or one of a single pose: the segment's clearance is bounded
-    from its ends' (:class:`~retarget.ik.collide.ClearanceBound`); only near a contact is it sampled
+    from its ends' (:class:`~retarget.ik.bound.ClearanceBound`); only near a contact is it sampled
     (``CollisionModel.segment_clear``)."""
 
     __slots__ = ("model", "clearance", "bound", "_segment_clear", "_limit", "_reach", "_at_cmd", "_cmd_state", "_memo")

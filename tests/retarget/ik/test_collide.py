@@ -106,7 +106,7 @@ def test_an_orientation_target_is_checked_too(wx):
 def test_the_bounds_never_exceed_the_true_clearance_near_a_noted_pose(arm_name):
     """Seeded property: from one noted pose, quick(q) <= lower_bound(q) <= the model's min clearance of q, for
     poses near it and far from it; pair_bounds never exceeds distances and is exact below its reach."""
-    from retarget.ik.collide import ClearanceBound
+    from retarget.ik.bound import ClearanceBound
 
     arm = load_arm(arm_name)
     model = CollisionModel.for_arm(arm, world=World(keep_out=(Sphere((0.3, 0.0, 0.2), 0.05),)))
