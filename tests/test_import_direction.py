@@ -18,7 +18,7 @@ FORBIDDEN = ("drivers", "sim", "serial", "dynamixel_sdk")
 
 #: retarget's math modules, and the control loop that only knows the ``retarget.control.bus.Bus`` protocol:
 #: every module of these subpackages (found on disk, so a new module is checked without editing this list)
-PURE_PACKAGES = ("bvh", "arm", "ik", "mapping", "control", "teleop", "collision")
+PURE_PACKAGES = ("bvh", "arm", "ik", "mapping", "control", "teleop", "collision", "rig")
 PURE = tuple(
     sorted(
         ".".join(p.relative_to(REPO).with_suffix("").parts).removesuffix(".__init__")
