@@ -135,17 +135,29 @@ class Chain:
 
     def fk_batch(self, Q: np.ndarray) -> np.ndarray:
         """Tool poses ``(n, 4, 4)`` for joint angles ``Q`` ``(n, n_joints)`` radians; base frame, metres."""
+        tool: np.ndarray = self.frames_batch(Q)[:, -1] @ self.tool
+        return tool
+
+    def frames_batch(self, Q: np.ndarray) -> np.ndarray:
+        """Every link frame ``(n, n_joints + 1, 4, 4)`` for joint angles ``Q`` ``(n, n_joints)`` radians: the base
+        frame (identity) first, then each joint's child frame; base frame, metres.
+
+        >>> from retarget.arm.load import load_arm
+        >>> arm = load_arm("omx")
+        >>> frames = arm.chain.frames_batch(arm.home[None])
+        >>> frames.shape, bool(np.allclose(frames[0, -1] @ arm.chain.tool, arm.fk(arm.home)[0]))
+        ((1, 5, 4, 4), True)
+        """
         Q = self._check(Q, "Q")
         if Q.ndim != 2:
             raise ValueError(f"Expected Q of shape (n, {self.n}), got {Q.shape}")
-        T = np.broadcast_to(np.eye(4), (Q.shape[0], 4, 4)).copy()
+        frames = np.empty((Q.shape[0], self.n + 1, 4, 4))
+        frames[:, 0] = np.eye(4)
         rot = np.broadcast_to(np.eye(4), (Q.shape[0], 4, 4)).copy()
         for i in range(self.n):
-            T = T @ self.origins[i]
             rot[:, :3, :3] = axis_angle_matrix(self.axes[i], Q[:, i])
-            T = T @ rot
-        tool: np.ndarray = T @ self.tool
-        return tool
+            frames[:, i + 1] = frames[:, i] @ self.origins[i] @ rot
+        return frames
 
 
 class HasChain(Protocol):
