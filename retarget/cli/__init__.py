@@ -29,7 +29,7 @@ from retarget.errors import BusError, ConfigError, RetargetError
 
 #: Subcommands in the order ``--help`` lists them.
 COMMANDS: tuple[str, ...] = (
-    "replay", "teleop", "export", "view", "plot", "inspect", "arm", "scan", "calibrate", "sim"
+    "replay", "teleop", "export", "view", "plot", "inspect", "arm", "rig", "scan", "calibrate", "sim"
 )  # fmt: skip
 
 EXIT_OK = 0
@@ -50,6 +50,7 @@ examples:
   retarget inspect clip.bvh --json     the same as JSON on stdout
   retarget arm vx300s                  an arm's joints, limits, servos and poses (--list: every bundled arm)
   retarget arm wx250s --ik 0.35,0,0.25 solve IK for a point in the base frame
+  retarget rig aloha                   a rig's arms, base poses, ports and sides (--list: the bundled rigs)
   retarget scan --port /dev/ttyUSB0    list the servos on a port: ID, model, firmware, baud
   retarget calibrate --arm koch --port /dev/ttyUSB0   a hand-built arm's servo zeros, directions, ranges
   retarget sim --tcp 127.0.0.1:4000    simulated servos of wx250s on loopback TCP (or a pty by default)
