@@ -10,8 +10,9 @@ import threading
 from typing import Any
 
 from drivers.control_table import parse_ids
-from retarget.arm.model import SERVO_BAUDS, SERVO_MODELS
+from retarget.arm.model import SERVO_BAUDS, SERVO_MODELS, Arm
 from retarget.cli._arm import add_link_arguments, load_arm_option
+from retarget.cli._sim_rig import refuse_one_arm_options, serve_rig
 from retarget.control.clock import MonotonicClock
 from retarget.errors import ConfigError
 from sim.bus import SimBus
@@ -39,6 +40,8 @@ examples:
   retarget sim --arm koch --mount 1:+300 --reverse 3
                                                  a hand-built Koch: servo 1's horn 300 pulses off, servo 3 reversed
   retarget sim --arm robot.urdf --tip ee_link    the servos of a URDF arm (servo IDs from robot.servos.toml)
+  retarget sim --rig aloha                       both arms of a rig, each on its own pty: prints NAME=PATH lines
+  retarget sim --rig aloha --tcp 127.0.0.1:4000  ... on TCP ports 4000 and 4001 (--tcp ...:0: any free ports)
 
 The first line on stdout is what to open: a device path (/dev/pts/N) or a socket:// URL; with --control the
 second line is the control address (HOST:PORT or unix:PATH); messages go to stderr.  Fault values take an
@@ -68,6 +71,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     servos = parser.add_argument_group("servos")
     servos.add_argument("--arm", default=None, help="bundled arm name or description file (default wx250s)")
     add_link_arguments(servos)
+    servos.add_argument(
+        "--rig", default=None, help="every arm of a rig (bundled name or .toml), each on its own pty or TCP port"
+    )
     servos.add_argument("--ids", default=None, help="IDs instead of an arm, e.g. 1-6 or 1,2,5")
     servos.add_argument("--model", default=None, help="servo model with --ids (default XL430-W250)")
     servos.add_argument("--baud", type=int, default=None, help="the servos' baud rate (default: the arm's, or 1000000)")
@@ -223,15 +229,7 @@ def build_bus(args: argparse.Namespace) -> SimBus:
     """The SimBus the options describe (real-time clock)."""
 
     fault_ids = check_options(args)
-    faults = Faults.from_options(
-        drop=args.drop,
-        corrupt=args.corrupt,
-        delay_ms=args.delay_ms,
-        unplug=args.unplug,
-        hwerror=args.hwerror,
-        wire=args.wire,
-        seed=args.seed,
-    )
+    faults = _faults(args)
     clock = MonotonicClock()
     if args.ids is not None:
         if args.arm is not None:
@@ -262,9 +260,26 @@ def build_bus(args: argparse.Namespace) -> SimBus:
     except ConfigError as exc:
         raise exc.with_key(f"--{exc.key}") from None
     _check_fault_ids({"--mount": set(mount.offsets), "--reverse": set(mount.reversed)}, arm.servo_ids)
+    return arm_bus(args, arm, faults, mount)
+
+
+def _faults(args: argparse.Namespace) -> Faults:
+    return Faults.from_options(
+        drop=args.drop,
+        corrupt=args.corrupt,
+        delay_ms=args.delay_ms,
+        unplug=args.unplug,
+        hwerror=args.hwerror,
+        wire=args.wire,
+        seed=args.seed,
+    )
+
+
+def arm_bus(args: argparse.Namespace, arm: Arm, faults: Faults, mount: Mounting | None = None) -> SimBus:
+    """The servos of ``arm`` as the options describe them (real-time clock)."""
     return SimBus.from_arm(
         arm,
-        clock=clock,
+        clock=MonotonicClock(),
         baud=args.baud,
         return_delay_time=args.rdt,
         boot_time=args.boot_ms / 1000.0,
@@ -274,7 +289,11 @@ def build_bus(args: argparse.Namespace) -> SimBus:
 
 
 def run(args: argparse.Namespace) -> int:
-
+    if args.rig is not None:
+        refuse_one_arm_options(args)
+        check_options(args)
+        address = _tcp_address(args.tcp) if args.tcp is not None else None
+        return serve_rig(args, lambda arm: arm_bus(args, arm, _faults(args)), address)
     try:
         bus = build_bus(args)
     except KeyError as exc:  # every option is checked first: no option to name
