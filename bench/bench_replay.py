@@ -225,7 +225,7 @@ def main() -> None:
     if not args.clip.is_file():
         raise SystemExit(f"bench_replay: clip not found: {args.clip} (set RETARGET_SHARED_BVH)")
     offline(args.clip, args.repeat)
-    offline_collisions(args.clip, min(args.repeat, 2))
+    offline_collisions(args.clip, args.repeat)
     if not args.skip_bus:
         on_bus(args.clip, args.bus_ticks)
     safety()

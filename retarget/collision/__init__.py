@@ -7,7 +7,10 @@
   joint-space moves) and :class:`SegmentCheck`; the pair count and what a check costs are in its docstring;
 - :mod:`~retarget.collision.fast` (the one-pose path: bounds, then exact measures of the pairs within reach),
   :mod:`~retarget.collision.kernels` (its numpy kernels), :mod:`~retarget.collision.scalar` (plain-float
-  kernels), :mod:`~retarget.collision.points` (target points against the blocked zones).
+  kernels), :mod:`~retarget.collision.points` (target points against the blocked zones);
+- :mod:`~retarget.collision.levers` (how fast each pair can close per radian of each joint) and
+  :mod:`~retarget.collision.pieces` (long moving capsules cut into pieces): the data of
+  :class:`~retarget.ik.bound.ClearanceBound`, the lower bound that spares most checks a query.
 
 A math package: it imports no driver, simulator or serial code.
 

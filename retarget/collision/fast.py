@@ -68,6 +68,7 @@ class OnePose:
 
     def __init__(self, model: Model) -> None:
         self.n_pairs = len(model.pair_names)
+        self.pose = b""  #: the pose (its bytes) whose points the buffers hold
         self._fk(model)
         pts = _Points()
         cap_pts = [pts.add(f, ends) for f, ends in zip(model._cap_frame, model._cap_local, strict=True)]
@@ -357,6 +358,7 @@ class OnePose:
 
     def _frames_and_points(self, q: np.ndarray) -> None:
         """Every point in the base frame and in each moving box's frame (``_buf``), by Horner down the chain."""
+        self.pose = q.tobytes()  # what `_buf` holds now
         n, L, v = self._n, self._local, self._v
         np.sin(q, out=v[:n])
         np.cos(q, out=v[n : 2 * n])

@@ -176,20 +176,23 @@ class CollisionModel(TargetPoints):
         rots, origins = self._frames(np.zeros((1, self._n)))
         f = self._cap_frame
         ends = np.einsum("ckl,cel->cek", rots[0, f], self._cap_local) + origins[0, f][:, None, :]
-        for u, i in enumerate(self._cap_ids):
-            for v, j in enumerate(self._cap_ids):
-                d = segment_segment(ends[u, 0], ends[u, 1], ends[v, 0], ends[v, 1]) - self._cap_r[u] - self._cap_r[v]
-                gaps[i, j] = float(d) - self.clearance
+        u, v = np.meshgrid(np.arange(len(f)), np.arange(len(f)), indexing="ij")  # every two capsules, one call
+        d = segment_segment(ends[u, 0], ends[u, 1], ends[v, 0], ends[v, 1]) - self._cap_r[u] - self._cap_r[v]
+        ids = np.array(self._cap_ids, dtype=np.intp)
+        gaps[np.ix_(ids, ids)] = d - self.clearance
         return gaps
 
     def _joint_envelope(self, u: int, v: int, joint: int) -> tuple[float, float]:
         """The least and greatest distance (metres) of capsules ``u`` and ``v`` (capsule indices) on the two sides
-        of ``joint`` over that joint's whole range (every 0.5 degree; no other joint moves one against the other)."""
+        of ``joint`` (``u`` on its parent frame, ``v`` on its child frame) over that joint's whole range (every 0.5
+        degree; no other joint moves one against the other), in the parent frame."""
         lo, hi = float(self.arm.lower[joint]), float(self.arm.upper[joint])
-        Q = np.zeros((max(2, math.ceil((hi - lo) / math.radians(0.5)) + 1), self._n))
-        Q[:, joint] = np.linspace(lo, hi, len(Q))
-        ends, r = self.capsules(Q)
-        d = segment_segment(ends[:, u, 0], ends[:, u, 1], ends[:, v, 0], ends[:, v, 1]) - r[u] - r[v]
+        q = np.linspace(lo, hi, max(2, math.ceil((hi - lo) / math.radians(0.5)) + 1))
+        spin = np.eye(3) + np.sin(q)[:, None, None] * self._K[joint] + (1 - np.cos(q))[:, None, None] * self._K2[joint]
+        R = self._rot0[joint] @ spin  # (m, 3, 3): the child frame in the parent's
+        a, b = self._cap_local[u]
+        ends = np.einsum("mkl,el->mek", R, self._cap_local[v]) + self._trans0[joint]
+        d = segment_segment(a, b, ends[:, 0], ends[:, 1]) - self._cap_r[u] - self._cap_r[v]
         return float(d.min()), float(d.max())
 
     def _folding(self, links: Sequence[LinkShape], near: set[tuple[int, int]]) -> dict[tuple[int, int], float]:
@@ -205,7 +208,8 @@ class CollisionModel(TargetPoints):
             fi, fj = sorted((links[i].frame, links[j].frame))
             if fi == BASE_FRAME or fj != fi + 1 or i not in cap_index or j not in cap_index:
                 continue
-            reach, widest = self._joint_envelope(cap_index[i], cap_index[j], fi)
+            lower, upper = (i, j) if links[i].frame == fi else (j, i)
+            reach, widest = self._joint_envelope(cap_index[lower], cap_index[upper], fi)
             if widest - reach <= self.clearance:
                 continue
             depth = max(self.geometry.nest_depth(links[i].name, links[j].name), self.clearance - reach + 1e-3)

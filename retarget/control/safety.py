@@ -89,8 +89,9 @@ class GoalCheck:
         self.clearance = float(d.min()) if d.size else math.inf
         self.bound = shared_bound(model)
         self.bound.note(q0.tolist(), d)
-        #: a lower bound of every pair's distance at the goal written (n_pairs,); None: that of :attr:`_cmd_state`
-        self._at_cmd: np.ndarray | None = np.array(d)
+        #: a lower bound of every row's distance at the goal written (the bound's rows: pairs, pieces of long ones);
+        #: None: that of :attr:`_cmd_state`
+        self._at_cmd: np.ndarray | None = self.bound.rows_at_note()
         self._cmd_state = self.bound.state  #: the note the goal written was proven clear from (when _at_cmd is None)
         self._segment_clear = model.segment_clear
         self._limit = float(model.clearance)
@@ -127,8 +128,8 @@ class GoalCheck:
         low = bound.segment_bound(q_from, q_to, at0, at1)
         if low < limit:
             end = np.array(q_to)
-            at1 = np.array(self.model.pair_bounds(end, self._reach))  # one pose: cheap; exact near the clearance
-            bound.note(q_to, at1)  # the next goals near it need no query
+            bound.note(q_to, self.model.pair_bounds(end, self._reach))  # one pose: cheap; exact near the clearance
+            at1 = bound.rows_at_note()  # (and the next goals near it need no query)
             low = bound.segment_bound(q_from, q_to, at0, at1)
             if low < limit:  # near a contact: sample the segment
                 check = self._segment_clear(np.array(q_from), end)

@@ -3,16 +3,18 @@
 See :class:`ClearanceBound`.  The IK's :class:`~retarget.ik.collide.CollisionGuard` and the control loop's goal
 check share one per model (:func:`shared_bound`).
 
-Arrays: ``q`` ``(n_joints,)`` float64 radians; pair distances ``(n_pairs,)`` metres, as the model's ``pair_names``.
+Arrays: ``q`` ``(n_joints,)`` float64 radians; pair distances ``(n_pairs,)`` metres, as the model's ``pair_names``;
+row distances ``(n_rows,)`` metres, the bound's rows (:class:`~retarget.collision.pieces.Pieces`: the pairs, with
+the long moving capsules cut into pieces).
 """
 
 from __future__ import annotations
 
 import math
-import operator
 import weakref
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from operator import mul, sub
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -24,24 +26,28 @@ __all__ = ["HORIZON", "ClearanceBound", "shared_bound"]
 #: metres beyond the clearance within which a query measures a pair exactly (farther ones keep a cheap lower bound
 #: of at least this: ``CollisionModel.pair_bounds``)
 HORIZON = 0.01
-_SINGLES = 3  #: :meth:`ClearanceBound.quick` bounds this many of the nearest pairs one by one, the rest in bands:
-_BANDS = np.array([0.0, 0.01, 0.03, 0.1])  #: where they start, metres beyond the next nearest pair's distance
+
+State = tuple[np.ndarray, np.ndarray]  #: a note: its pose ``(n_joints,)`` rad and row distances ``(n_rows,)`` m
+#: a note's plain-float screen: its pose and its groups of rows (least distance, greatest levers)
+Screen = tuple[list[float], list[tuple[float, ...]]]
+_NEAR = 6  #: rows the screen bounds one by one (the rest in groups: see ClearanceBound._screen_for)
+_BANDS = (0.0, 0.01, 0.03, 0.1)  #: where the screen's bands of rows start, metres beyond the least of them
 
 
 class ClearanceBound:
     """A lower bound of the clearance of poses near one that was checked, so most checks can be skipped.
 
     A pair of shapes on frames ``a < b`` (a zone of the world is on the base frame, 0) keeps a distance that
-    depends only on joints ``a .. b-1``: only the shape on frame ``b`` moves in frame ``a``.  A turn of joint
-    ``j`` moves that shape's points by at most their distance from the joint's origin per radian, at most
-    ``L_j = |o_{j+1}| + ... + |o_{b-1}| + extent`` (the joint origins' offsets ``o`` along the chain, and the
-    shape's farthest point from its frame's origin).  So from a checked pose ``q_ref`` to ``q`` the pair's
-    distance falls by at most ``sum_{a <= j < b} |q_j - q_ref_j| L_j``.  After :meth:`note` of ``q_ref`` with
-    its pair distances, :meth:`lower_bound` of ``q`` is the smallest pair distance minus its fall: when it is
-    still at least the clearance, ``q`` is clear without a query; and so is every pose of a straight joint-space
-    segment whose two ends are (the bound is convex along the segment).  A few small numpy operations;
-    :meth:`quick` is a looser bound of a few plain-float operations (the nearest pairs one by one, the rest as
-    bands of distance: each band's least distance less its greatest levers' fall), enough far from a contact.
+    depends only on joints ``a .. b-1``; a turn of joint ``j`` alone changes it by at most ``L_j`` per radian
+    (:func:`~retarget.collision.levers.pair_levers`: the greatest distance from the joint's axis of the points of
+    either shape, bounded whatever the other joints do).  So from a checked pose ``q_ref`` to ``q`` the pair's
+    distance falls by at most ``sum_j |q_j - q_ref_j| L_j``.  Long moving capsules are cut into pieces, each with
+    its own distance and smaller levers (:class:`~retarget.collision.pieces.Pieces`): the rows of the bound.
+    After :meth:`note` of ``q_ref`` with its pair distances, :meth:`lower_bound` of ``q`` is the smallest row
+    distance minus its fall: when it is still at least the clearance, ``q`` is clear without a query; and so is
+    every pose of a straight joint-space segment whose two ends are (the bound is concave along the segment).
+    Five small numpy operations on preallocated buffers; the last pose's value is kept (a second call with the
+    same pose costs a comparison).
 
     >>> import retarget
     >>> from retarget.collision import CollisionModel
@@ -49,103 +55,165 @@ class ClearanceBound:
     >>> model = CollisionModel.for_arm(arm)
     >>> bound = ClearanceBound(model)
     >>> bound.note(arm.home.tolist(), model.distances(arm.home))
-    >>> bound.lower_bound(arm.home.tolist()) == model.min_clearance(arm.home)
+    >>> abs(bound.lower_bound(arm.home.tolist()) - model.min_clearance(arm.home)) < 1e-12
     True
     >>> bound.lower_bound((arm.home + 0.01).tolist()) < model.min_clearance(arm.home + 0.01)
     True
     """
 
-    __slots__ = ("_levers", "_state", "_quick", "_previous")
+    __slots__ = ("_pieces", "_levers", "_state", "_previous", "_last", "_move", "_fall", "_clearance", "_scale",
+                 "_inv_sigma", "_rows", "_screen", "_screen_previous")  # fmt: skip
 
     def __init__(self, model: CollisionModel):
-        from retarget.collision import Box  # the shapes' types (the collision package never imports this one)
+        from retarget.collision.pieces import Pieces  # (the collision package never imports this one)
 
-        arm = model.arm
-        hops = [float(np.linalg.norm(j.origin_xyz)) for j in arm.joints]  # joint k's origin in frame k
-        links = {link.name: link for link in model.geometry.links}
+        self._pieces = Pieces(model)  #: the rows: the pairs, long movers cut into pieces
+        self._levers = np.ascontiguousarray(self._pieces.levers)  #: ``(n_rows, n_joints)`` metres per radian
+        self._state: State | None = None  #: the last note; one tuple, replaced whole
+        self._previous: State | None = None  #: the note before it: a motion that swings back may be near it
+        #: the last pose :meth:`quick` bounded (a copy), the note it was bounded from and the value
+        self._last: tuple[State | None, list[float], float] = (None, [], -math.inf)
+        self._move = np.empty(model.arm.n_joints)  # buffers of _low
+        self._fall = np.empty(len(self._levers))
+        # the screen (see _screen_for): each joint's greatest lever, and each row's levers in units of them
+        self._clearance = float(model.clearance)
+        scale = self._levers.max(axis=0, initial=0.0)
+        self._scale: list[float] = scale.tolist()
+        sigma = (self._levers / np.where(scale > 0, scale, 1.0)).sum(axis=1)  # (n_rows,), 0 .. n_joints
+        self._inv_sigma = np.where(sigma > 0, 1.0 / np.where(sigma > 0, sigma, 1.0), 0.0)
 
-        def extent(name: str) -> float:
-            shape = links[name].shape
-            if isinstance(shape, Box):
-                return float(np.linalg.norm(shape.center) + np.linalg.norm(shape.half_size))
-            return float(max(np.linalg.norm(shape.a), np.linalg.norm(shape.b)) + shape.radius)
-
-        levers = np.zeros((len(model.pair_names), arm.n_joints))
-        for k, name in enumerate(model.pair_names):
-            u, v = name.split("/")
-            fu = links[u].frame if u in links else 0  # a world zone (table, keep-out) is on the base frame
-            fv = links[v].frame if v in links else 0
-            a, b, mover = (fu, fv, v) if fu <= fv else (fv, fu, u)
-            for j in range(a, b):
-                levers[k, j] = sum(hops[j + 1 : b]) + extent(mover)
-        self._levers = levers  #: ``(n_pairs, n_joints)`` metres per radian
-        #: the last pose noted ``(n_joints,)`` and its pair distances ``(n_pairs,)``; one tuple, replaced whole
-        self._state: tuple[np.ndarray, np.ndarray] | None = None
-        #: the last pose noted as floats and its groups' (least distance, greatest lever per joint): see quick
-        self._quick: tuple[list[float], list[tuple[float, list[float]]]] = ([], [(-math.inf, [])])
-        #: the note before the last (:attr:`state`, quick groups): a motion that swings back may be near it
-        self._previous: tuple[tuple[np.ndarray, np.ndarray] | None, tuple[list[float], list[Any]]] = (None, self._quick)
+        self._rows: list[list[float]] = self._levers.tolist()
+        self._screen: Screen | None = None
+        self._screen_previous: Screen | None = None
 
     @property
-    def previous_state(self) -> tuple[np.ndarray, np.ndarray] | None:
+    def previous_state(self) -> State | None:
         """The note before the last (as :attr:`state`; None: fewer than two notes)."""
-        return self._previous[0]
+        return self._previous
 
     @property
-    def state(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """The last note: its pose ``(n_joints,)`` rad and pair distances ``(n_pairs,)`` metres (None: no note)."""
+    def state(self) -> State | None:
+        """The last note: its pose ``(n_joints,)`` rad and row distances ``(n_rows,)`` metres (None: no note)."""
         return self._state
 
     def note(self, q: Sequence[float] | np.ndarray, distances: np.ndarray) -> None:
-        """Pose ``q`` (rad) was checked: ``distances`` ``(n_pairs,)`` metres, every pair's (lower bounds will do)."""
-        ref, d = np.array(q, dtype=np.float64), np.array(distances, dtype=np.float64)
-        self._previous = (self._state, self._quick)
-        self._state = (ref, d)
-        order = np.argsort(d, kind="stable")
-        ds, ls = d[order], self._levers[order]
-        near = ds.tolist()
-        groups = list(zip(near[:_SINGLES], ls[:_SINGLES].tolist(), strict=False))
-        rest = ds[_SINGLES:]
-        if rest.size:  # the rest in bands (contiguous: sorted), each its least distance and greatest levers
-            cuts = np.searchsorted(rest, rest[0] + _BANDS).tolist()
-            starts = sorted({c for c in cuts if c < rest.size})
-            levers = np.maximum.reduceat(ls[_SINGLES:], starts, axis=0).tolist()
-            groups += [(near[_SINGLES + i], row) for i, row in zip(starts, levers, strict=True)]
-        self._quick = (ref.tolist(), groups)
+        """Pose ``q`` (rad) was checked: ``distances`` ``(n_pairs,)`` metres, every pair's (lower bounds will do;
+        exact ones near the clearance let the pieces of a long link be measured)."""
+        ref = np.array(q, dtype=np.float64)
+        self._previous, self._state = self._state, (ref, self._pieces.rows(ref, distances))
+        self._screen_previous, self._screen = self._screen, self._screen_for(self._state)
 
-    def quick(self, q: Sequence[float] | np.ndarray) -> float:
-        """A lower bound of the min clearance (metres) of pose ``q`` (rad), at most :meth:`lower_bound`'s, in plain
-        floats (about a microsecond); ``-inf`` before the first :meth:`note`, ``inf`` without pairs."""
-        return self._quick_from(self._quick, q)
-
-    def quick_previous(self, q: Sequence[float] | np.ndarray) -> float:
-        """:meth:`quick` from the note before the last (``-inf`` before the second note)."""
-        return self._quick_from(self._previous[1], q)
+    def _screen_for(self, state: State) -> Screen | None:
+        """The plain-float screen of a note: the :data:`_NEAR` rows that the least motion brings to the clearance
+        (their slack over their levers, summed in units of each joint's greatest lever), one by one, and the rest
+        in bands of distance (:data:`_BANDS`), each its least distance and its greatest lever per joint."""
+        ref, d = state
+        if len(d) <= _NEAR:
+            return None
+        room = (d - self._clearance) * self._inv_sigma  # (rows no joint moves: 0, so first; they have no levers)
+        order = np.argpartition(room, _NEAR)
+        near = order[:_NEAR].tolist()
+        far = order[_NEAR:]
+        far = far[np.argsort(d[far], kind="stable")]
+        df = d[far].tolist()
+        starts: list[int] = []
+        i = 0
+        for band in _BANDS:  # where each band starts in the far rows (sorted by distance)
+            edge = df[0] + band
+            while i < len(df) and df[i] < edge:
+                i += 1
+            if i < len(df) and (not starts or i > starts[-1]):
+                starts.append(i)
+        starts[0] = 0
+        levers = np.maximum.reduceat(self._levers[far], starts, axis=0).tolist()
+        rows, d_list = self._rows, d.tolist()
+        groups = [(d_list[r], *rows[r]) for r in near] + [(df[i], *row) for i, row in zip(starts, levers, strict=True)]
+        return ref.tolist(), groups
 
     @staticmethod
-    def _quick_from(table: tuple[list[float], list[Any]], q: Sequence[float] | np.ndarray) -> float:
-        ref, groups = table
-        if not ref:
-            return -math.inf if groups else math.inf
-        moves = [abs(a - b) for a, b in zip(q, ref, strict=True)]
+    def _screened(screen: Screen, q: list[float]) -> float:
+        """The screen's lower bound of the min clearance of ``q`` (rad): each group's distance less its fall
+        (``(distance, lever_0, lever_1, ...)`` each; unrolled for the usual five and six joints)."""
+        ref, groups = screen
         low = math.inf
-        mul = operator.mul
-        for d, levers in groups:
+        if len(ref) == 6:
+            m0, m1, m2 = abs(q[0] - ref[0]), abs(q[1] - ref[1]), abs(q[2] - ref[2])
+            m3, m4, m5 = abs(q[3] - ref[3]), abs(q[4] - ref[4]), abs(q[5] - ref[5])
+            for d, a, b, c, e, f, g in groups:
+                v = d - (a * m0 + b * m1 + c * m2 + e * m3 + f * m4 + g * m5)
+                if v < low:
+                    low = v
+            return low
+        if len(ref) == 5:
+            m0, m1, m2 = abs(q[0] - ref[0]), abs(q[1] - ref[1]), abs(q[2] - ref[2])
+            m3, m4 = abs(q[3] - ref[3]), abs(q[4] - ref[4])
+            for d, a, b, c, e, f in groups:
+                v = d - (a * m0 + b * m1 + c * m2 + e * m3 + f * m4)
+                if v < low:
+                    low = v
+            return low
+        moves = list(map(abs, map(sub, q, ref)))
+        for d, *levers in groups:
             v = d - sum(map(mul, levers, moves))
             if v < low:
                 low = v
         return low
 
+    def rows_at_note(self) -> np.ndarray:
+        """The last note's row distances (a copy; metres), as :meth:`pairs_at` gives them."""
+        if self._state is None:
+            raise ValueError("Expected a note before rows_at_note")
+        return self._state[1].copy()
+
+    def quick(self, q: Sequence[float] | np.ndarray) -> float:
+        """A lower bound of the min clearance (metres) of pose ``q`` (rad) from the last note, the same as
+        :meth:`lower_bound`: first in plain floats (a few microseconds: the nearest rows one by one, the rest in
+        bands of distance, each its least distance less its greatest levers' fall), then, when that is below the
+        clearance, every row's own (a few numpy calls); the last pose's value is kept (a second call costs a
+        comparison).  ``-inf`` before the first :meth:`note`, ``inf`` without pairs."""
+        qs = q.tolist() if isinstance(q, np.ndarray) else list(q)
+        state, (last_state, last_q, value) = self._state, self._last
+        if last_state is state and qs == last_q:
+            return value
+        screen = self._screen
+        value = math.nan if screen is None or len(qs) != len(screen[0]) else self._screened(screen, qs)
+        if not value >= self._clearance:  # (or nan: no screen) the screen is not enough: every row
+            value = self._low(state, qs)
+        self._last = (state, qs, value)
+        return value
+
+    def quick_previous(self, q: Sequence[float] | np.ndarray) -> float:
+        """A lower bound of the min clearance of ``q`` from the note before the last (``-inf`` before the second
+        note): its plain-float screen only (a last resort before a query: no numpy)."""
+        qs = q.tolist() if isinstance(q, np.ndarray) else list(q)
+        screen = self._screen_previous
+        if screen is None or len(qs) != len(screen[0]):
+            return self._low(self._previous, qs)
+        return self._screened(screen, qs)
+
     def lower_bound(self, q: Sequence[float] | np.ndarray) -> float:
         """A lower bound of the min clearance (metres) of pose ``q`` (rad); ``-inf`` before the first :meth:`note`."""
-        at = self.pairs_at(q)
-        return float(at.min()) if at.size else math.inf
+        return self.quick(q)
 
-    def pairs_at(
-        self, q: Sequence[float] | np.ndarray, state: tuple[np.ndarray, np.ndarray] | None | bool = True
-    ) -> np.ndarray:
-        """A lower bound of every pair's distance in pose ``q`` ``(n_pairs,)`` metres (``-inf`` before a note),
-        from the last note, or from ``state`` (an earlier :attr:`state`) when given."""
+    def _low(self, state: State | None, q: Sequence[float] | np.ndarray) -> float:
+        fall = self._fall
+        if not fall.size:
+            return math.inf
+        if state is None:
+            return -math.inf
+        ref, d = state
+        if len(q) != len(ref):
+            raise ValueError(f"Expected {len(ref)} joint angles, got {len(q)}")
+        move = self._move
+        np.subtract(q, ref, out=move)
+        np.abs(move, out=move)
+        np.dot(self._levers, move, out=fall)
+        np.subtract(d, fall, out=fall)
+        return float(fall.min())
+
+    def pairs_at(self, q: Sequence[float] | np.ndarray, state: State | None | bool = True) -> np.ndarray:
+        """A lower bound of every row's distance in pose ``q`` ``(n_rows,)`` metres (``-inf`` before a note), from
+        the last note, or from ``state`` (an earlier :attr:`state`) when given."""
         if state is True:
             state = self._state
         if state is None:
@@ -157,7 +225,7 @@ class ClearanceBound:
 
     def segment_bound(self, q0: Sequence[float], q1: Sequence[float], at0: np.ndarray, at1: np.ndarray) -> float:
         """A lower bound of the min clearance over the straight joint-space segment ``q0`` -> ``q1``, from lower
-        bounds ``at0``, ``at1`` ``(n_pairs,)`` of the pair distances at its ends: each pair's distance is within
+        bounds ``at0``, ``at1`` ``(n_rows,)`` of the row distances at its ends: each row's distance is within
         its fall ``L`` of both ends' along the way, so it is at least ``min(a, b)`` and ``(a + b - L) / 2``."""
         fall = self._levers @ np.abs(np.asarray(q1, dtype=np.float64) - np.asarray(q0, dtype=np.float64))
         low = np.minimum(np.minimum(at0, at1), 0.5 * (at0 + at1 - fall))

@@ -1,0 +1,170 @@
+"""ClearanceBound, its levers and its pieces: seeded properties that no bound ever exceeds the true clearance."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from retarget.arm.load import load_arm
+from retarget.collision import Box, CollisionModel, Sphere, World
+from retarget.collision.distance import point_box, point_segment
+from retarget.collision.levers import pair_levers
+from retarget.collision.pieces import Pieces
+from retarget.ik.bound import ClearanceBound
+
+ARMS = ["wx250s", "vx300s", "koch", "omx", "px100"]
+ZONES = World(keep_out=(Sphere((0.3, 0.1, 0.2), 0.05), Box((0.2, -0.2, 0.1), (0.05, 0.05, 0.1))))
+
+
+def _model(name: str, zones: bool) -> CollisionModel:
+    return CollisionModel.for_arm(load_arm(name), world=ZONES if zones else None)
+
+
+def _per_pair(bound: ClearanceBound, rows: np.ndarray, n_pairs: int) -> np.ndarray:
+    """Each pair's bound: the least of its rows (its pieces, for a cut pair)."""
+    out = np.full(n_pairs, math.inf)
+    np.minimum.at(out, bound._pieces.pair_of, rows)
+    return out
+
+
+@pytest.mark.parametrize("zones", [False, True], ids=["table", "keep-outs"])
+@pytest.mark.parametrize("name", ARMS)
+def test_a_pair_never_closes_faster_than_its_levers(name, zones):
+    """From any pose to any other, each pair's distance falls by at most its levers times the joints' moves (where
+    it stays positive: a penetrating box pair's depth is a bound of nothing in particular)."""
+    model = _model(name, zones)
+    arm = model.arm
+    levers = pair_levers(model)
+    rng = np.random.default_rng(11)
+    for _ in range(60):
+        q0 = rng.uniform(arm.lower, arm.upper)
+        for scale in (0.01, 0.1, 1.0):
+            q1 = q0 + rng.normal(0.0, scale, arm.n_joints)
+            bound = model.distances(q0) - levers @ np.abs(q1 - q0)
+            d1 = model.distances(q1)
+            positive = bound > 0
+            assert np.all(bound[positive] <= d1[positive] + 1e-12)
+
+
+def test_the_turntable_does_not_count_against_the_table_and_the_shoulder_axis_bounds_the_upper_arm():
+    model = _model("wx250s", False)
+    levers = pair_levers(model)
+    names = model.pair_names
+    assert np.all(levers[[i for i, n in enumerate(names) if n.endswith("/table")], 0] == 0.0)
+    upper = levers[names.index("upper_arm/base")]
+    # the waist by the base's corners about its own axis (not the upper arm's far end, 0.27 m); only two joints
+    np.testing.assert_allclose(upper[:2], [math.hypot(0.0771, 0.0770), 0.1695], atol=2e-3)
+    assert np.all(upper[2:] == 0.0)
+
+
+@pytest.mark.parametrize("name", ["wx250s", "vx300s"])
+def test_each_piece_is_at_most_as_far_as_a_brute_force_sample_of_it(name):
+    """At the noted pose, each piece of a cut capsule is no farther than the least distance over 200 points
+    sampled along it (to the other shape: a capsule's segment or a base box), less the pair's radii and nest."""
+    model = _model(name, False)
+    pieces = Pieces(model)
+    assert pieces._cut, "the long links of this arm are cut"
+    rng = np.random.default_rng(5)
+    arm = model.arm
+    for _ in range(30):
+        q = rng.uniform(arm.lower, arm.upper) * 0.7
+        rows = pieces.rows(q, model.pair_bounds(q, model.clearance + 0.01))
+        rots, origins = model._frames(q[None])
+        ends, _ = model.capsules(q)
+        links = {link.name: i for i, link in enumerate(model.geometry.links)}
+        cap = {i: c for c, i in enumerate(model._cap_ids)}
+        for k, kk, kind, _, spans, span_rows in pieces._cut:
+            u, v = sorted(model.pair_names[k].split("/"), key=lambda n: -model.geometry.links[links[n]].frame)
+            a, b = ends[cap[links[u]]]  # u: the moving capsule (on the later frame)
+            offset = model._one._py_off[kk]
+            for (t0, t1), value in zip(spans, rows[span_rows], strict=True):
+                t = np.linspace(t0, t1, 200)[:, None]
+                pts = a + t * (b - a)
+                if kind == 0:
+                    oa, ob = ends[cap[links[v]]]
+                    far = point_segment(pts, oa, ob)
+                else:
+                    box = model._box_ids.index(links[v])
+                    frame = model._box_frame[box]
+                    local = (pts - origins[0, frame]) @ rots[0, frame]
+                    far = point_box(local, model._box_c[box], model._box_h[box])
+                assert value <= float(far.min()) - offset + 1e-12
+
+
+@pytest.mark.parametrize("zones", [False, True], ids=["table", "keep-outs"])
+@pytest.mark.parametrize("name", ARMS)
+def test_no_bound_exceeds_the_true_clearance_near_or_far_from_its_notes(name, zones):
+    """Seeded: notes from pair_bounds (as the IK's guard and the goal check take them) or exact distances; every
+    pair's bound from the last note, quick, lower_bound and quick_previous never exceed the true clearance."""
+    model = _model(name, zones)
+    arm = model.arm
+    bound = ClearanceBound(model)
+    rng = np.random.default_rng(3)
+    n = len(model.pair_names)
+    for i in range(80):
+        ref = rng.uniform(arm.lower, arm.upper) * rng.choice([0.4, 1.0])
+        bound.note(ref, model.pair_bounds(ref, model.clearance + 0.01) if i % 2 else model.distances(ref))
+        for scale in (0.003, 0.03, 0.3):
+            q = ref + rng.normal(0.0, scale, arm.n_joints)
+            exact = model.distances(q)
+            pairs = _per_pair(bound, bound.pairs_at(q), n)
+            positive = pairs > 0
+            assert np.all(pairs[positive] <= exact[positive] + 1e-12)
+            least = float(exact.min())
+            assert bound.quick(q) <= least + 1e-12
+            assert bound.lower_bound(q) <= least + 1e-12
+            assert bound.quick_previous(q) <= least + 1e-12
+
+
+@pytest.mark.parametrize("name", ["wx250s", "koch"])
+def test_the_segment_bound_never_exceeds_a_sampled_segment(name):
+    model = _model(name, True)
+    arm = model.arm
+    bound = ClearanceBound(model)
+    rng = np.random.default_rng(9)
+    for _ in range(40):
+        ref = rng.uniform(arm.lower, arm.upper) * 0.6
+        bound.note(ref, model.distances(ref))
+        q0 = ref + rng.normal(0.0, 0.02, arm.n_joints)
+        q1 = q0 + rng.normal(0.0, 0.05, arm.n_joints)
+        low = bound.segment_bound(q0, q1, bound.pairs_at(q0), bound.pairs_at(q1))
+        samples = q0 + np.linspace(0.0, 1.0, 41)[:, None] * (q1 - q0)
+        assert low <= float(model.distances(samples).min()) + 1e-12
+
+
+def test_the_quick_bound_of_a_pose_is_kept_but_not_for_a_list_changed_since():
+    model = _model("wx250s", False)
+    bound = ClearanceBound(model)
+    home = model.arm.home.tolist()
+    bound.note(home, model.distances(model.arm.home))
+    q = list(home)
+    first = bound.quick(q)
+    assert bound.quick(q) == first  # the same pose: the kept value
+    q[1] += 0.3  # the caller changes its list: a new pose, a new (smaller) bound
+    assert bound.quick(q) < first
+    assert bound.quick(q) <= model.min_clearance(np.array(q)) + 1e-12
+
+
+def test_the_screen_and_the_exact_bound_agree_at_the_note_and_both_bound_from_below():
+    model = _model("wx250s", False)
+    bound = ClearanceBound(model)
+    q = np.array([0.3, -0.2, 0.3, 0.2, 0.5, 0.1])
+    bound.note(q, model.distances(q))
+    assert bound.quick(q) == pytest.approx(model.min_clearance(q), abs=1e-12)
+    moved = (q + 0.05).tolist()
+    assert bound._screened(bound._screen, moved) <= bound._low(bound.state, moved) + 1e-12
+
+
+def test_bad_input_raises():
+    model = _model("wx250s", False)
+    bound = ClearanceBound(model)
+    with pytest.raises(ValueError, match="Expected a note before rows_at_note"):
+        bound.rows_at_note()
+    assert bound.quick(model.arm.home) == -math.inf  # nothing noted yet
+    bound.note(model.arm.home, model.distances(model.arm.home))
+    with pytest.raises(ValueError, match="Expected 6 joint angles, got 1"):
+        bound.quick([0.1])
+    with pytest.raises(ValueError, match="Expected 6 joint angles, got 5"):
+        bound.lower_bound([0.1] * 5)
