@@ -939,13 +939,13 @@ def brute_force_min_clearances(arm, Q, world=None, spacing: float = 0.008, chunk
                 a, b = np.asarray(link.shape.a), np.asarray(link.shape.b)
                 t = np.linspace(0.0, 1.0, max(2, math.ceil(np.linalg.norm(b - a) / spacing) + 1))
                 local, r = a + t[:, None] * (b - a), link.shape.radius
-            clouds[name] = (np.einsum("nij,kj->nki", T[:, :3, :3], local) + T[:, None, :3, 3], r)
+            clouds[name] = (np.matmul(local, T[:, :3, :3].transpose(0, 2, 1)) + T[:, None, :3, 3], r)  # R @ local
 
         squares = {name: np.einsum("nki,nki->nk", p, p) for name, (p, _) in clouds.items()}
 
         def to_box(points, name):  # signed distance of base-frame points to box link `name`
             T, box = frames[links[name].frame], links[name].shape
-            local = np.einsum("nji,nkj->nki", T[:, :3, :3], points - T[:, None, :3, 3])
+            local = np.matmul(points - T[:, None, :3, 3], T[:, :3, :3])  # R^T @ (p - t), per point
             return box_sdf(local, box.center, box.half_size)
 
         worst = np.full(len(Qc), np.inf)

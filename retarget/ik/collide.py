@@ -6,17 +6,25 @@ unless no such pose was found from the seed (then ``blocked``).  The fast path c
 
 1. solve as without a model, then check the final pose once (``model.min_clearance``);
 2. only when it is not clear, **back off** (of the free solutions for points spaced along the line from the
-   seed's tool point to the target, the farthest whose pose is clear), then **re-solve from there with
+   seed's tool point to the target, the farthest whose pose is clear; none when even the nearest is not, or
+   when the seed is already against an obstacle, as after a blocked tick), then **re-solve from there with
    per-joint shortening**: base first, each joint
    takes its CCD update (the same closed-form minimiser, weights and short-lever damping), clamped to the
    limits, and when the pose it leads to is not clear the step is **shortened** to the longest clear one of
-   its halvings (``bisections`` of them), the way a joint limit clamps it;
-3. the re-solve ends at the target (converged, clear), or where no joint can bring the tool closer: the
-   nearest safe pose found, reported ``converged=False, blocked=True`` in the :class:`~retarget.ik.IKResult`.
+   its halvings (``bisections`` of them), the way a joint limit clamps it: each candidate is one one-pose
+   query, and the clearance values pick which halving to try (a joint against the obstacle costs one query);
+3. the re-solve ends at the target (converged, clear), or where no joint can bring the tool closer: then the
+   free solution from home is tried (a seed folded against an obstacle, say after a target below the table,
+   keeps the warm solves in its trap once the target is reachable again), and taken when it reaches the
+   target clear; else the nearest safe pose found, reported ``converged=False, blocked=True`` in the
+   :class:`~retarget.ik.IKResult`.
 
-A seed that is itself not clear starts the re-solve from the first clear pose of (seed, home, rest); when none
-is clear the seed comes back, ``blocked``, and the caller (the control loop) refuses to send it.  Orientation
-targets re-solve a sweep at a time: each sweep's step is bisected as a whole (a straight line in joint space).
+Every pose returned was measured clear (or bounded clear near a measured pose).  A seed that is itself not clear
+starts the re-solve from the first clear pose of (seed, home, rest); when none is clear the seed comes back,
+``blocked``, and the caller (the control loop) refuses to send it.  Orientation targets re-solve a sweep at a
+time: each sweep's step is bisected as a whole (a straight line in joint space).  A re-solve that ended at its
+own seed (or got no closer) is returned again, without the work, for the same target from the pose it returned
+(a held target the arm is stuck against, tick after tick: the same answer).
 
 Arrays: ``q`` ``(n_joints,)`` float64 radians; targets ``(3,)`` metres, base frame.
 """
@@ -74,8 +82,9 @@ __all__ = ["CollisionGuard"]
 
 
 _EPS2 = 1e-16  #: as in ccd: below this the joint cannot move the tool toward the target
-_MAX_CHECKS = 60  #: a blocked re-solve stops after this many (batched) checks: a tick's budget, not a search
+_MAX_CHECKS = 60  #: a blocked re-solve stops after this many checks: a tick's budget, not a search
 _BACK_OFF_SWEEPS = 8  #: the sweep budget of each free solve of the back-off (warm from the seed: a few do)
+_AGAINST = 1e-3  #: metres: a start within this of the clearance is against an obstacle (no back-off, see there)
 _MAX_SWEEPS = 4  #: and after this many sweeps (it slides along an obstacle; the next tick goes on from there)
 
 
@@ -94,6 +103,9 @@ class CollisionGuard:
         self.clearance = float(model.clearance)
         self.bound = shared_bound(model)  #: skips the check of a result near the last pose queried
         self._reach = self.clearance + HORIZON
+        #: the last blocked re-solve that made no progress: (target, the pose it returned, rotation, tol, budget)
+        #: and its result, for the next call from that pose (see resolve)
+        self._fixed: tuple[tuple[Any, ...], IKResult] | None = None
 
     def clear(self, q: Sequence[float] | np.ndarray) -> tuple[bool, float]:
         """Whether pose ``q`` (radians) keeps the clearance, and its min clearance (metres; a lower bound when the
@@ -113,18 +125,21 @@ class CollisionGuard:
         m = float(d.min()) if d.size else math.inf
         return m >= self.clearance, m
 
-    def first_clear(self, poses: list[list[float]]) -> tuple[int, float]:
-        """The index of the first clear pose of ``poses`` (radians; one batched query) and its min clearance;
-        ``(-1, nan)`` when none is clear."""
-        d = self.model.distances(np.array(poses))
-        worst = d.min(axis=1) if d.shape[1] else np.full(len(poses), math.inf)
-        ok = np.flatnonzero(worst >= self.clearance)
-        return (int(ok[0]), float(worst[ok[0]])) if ok.size else (-1, math.nan)
+    def measure(self, q: Sequence[float] | np.ndarray) -> float:
+        """The min clearance of pose ``q`` (radians; metres) where it decides: the bound near the last pose queried
+        when that keeps the clearance (a lower bound), else the model's one-pose value (exact; no note: the
+        re-solve's candidates are many, its result is noted once)."""
+        m = self.bound.quick(q)
+        return m if m >= self.clearance else self.model.min_clearance(np.array(q))
+
+    def ok(self, q: Sequence[float] | np.ndarray) -> bool:
+        """Whether pose ``q`` (radians) keeps the clearance (:meth:`measure`)."""
+        return self.measure(q) >= self.clearance
 
     def check(self, q: np.ndarray) -> tuple[bool, float]:
         """Step 1: whether a solver's result ``q`` ``(n_joints,)`` rad is clear, and its clearance (metres): a
-        query of the pose, or (near the last pose queried) a lower bound of it (:class:`~retarget.ik.bound.ClearanceBound`).  When it
-        is not clear the solver calls :meth:`resolve`."""
+        query of the pose, or (near the last pose queried) a lower bound of it
+        (:class:`~retarget.ik.bound.ClearanceBound`).  When it is not clear the solver calls :meth:`resolve`."""
         return self.clear(q)
 
     # -----------------------------------------------------------------------------------------------------------
@@ -134,8 +149,8 @@ class CollisionGuard:
         arm = s.arm
         for q in (seed, arm.home.tolist(), arm.rest.tolist()):
             q = [lo if v < lo else hi if v > hi else v for v, lo, hi in zip(q, s._lo, s._hi, strict=True)]
-            ok, m = self.clear(q)
-            if ok:
+            m = self.measure(q)
+            if m >= self.clearance:
                 return q, m
         return None
 
@@ -147,16 +162,70 @@ class CollisionGuard:
         tol: float,
         budget: int,
     ) -> IKResult:
-        """The shortened re-solve from ``seed`` (see the module docstring)."""
+        """The shortened re-solve from ``seed`` (see the module docstring).  A blocked re-solve that got the tool
+        no closer than its seed was (by 1% of the tolerance) is kept: the next call for the same target from the
+        pose it returned gets that pose back at once (a held target the arm is stuck against, tick after tick:
+        the same answer, and no creeping along the obstacle)."""
+        fixed = self._fixed
+        if fixed is not None and fixed[0] == (target, seed, rotation, tol, budget):
+            r = fixed[1]
+            return IKResult(r.q.copy(), r.error, r.iterations, r.converged, r.orientation_error, r.restarts,
+                            blocked=r.blocked, clearance=r.clearance)  # fmt: skip
+        result = self._resolve(target, seed, rotation, tol, budget)
+        q = result.q.tolist()
+        stuck = result.blocked and (
+            q == seed
+            or rotation is None
+            and math.dist(self.solver.tool_point(seed), target) - result.error < 0.01 * tol
+        )
+        self._fixed = ((target, q, rotation, tol, budget), result) if stuck else None
+        return result
+
+    def _resolve(
+        self,
+        target: tuple[float, float, float],
+        seed: list[float],
+        rotation: tuple[tuple[float, ...], ...] | None,
+        tol: float,
+        budget: int,
+    ) -> IKResult:
         start = self._start(seed)
         if start is None:
             err = math.dist(self.solver.tool_point(seed), target)
             _, m = self.clear(seed)
             return IKResult(np.array(seed), err, 0, False, blocked=True, clearance=m)
-        q, m = self._back_off(start[0], start[1], target, rotation, tol, budget)
+        q, m = self._back_off(*start, target, rotation, tol, budget)
         if rotation is None:
-            return self._resolve_position(q, m, target, tol, budget)
-        return self._resolve_pose(q, m, target, rotation, tol, budget)
+            result = self._resolve_position(q, m, target, tol, budget)
+        else:
+            result = self._resolve_pose(q, target, rotation, tol, budget)
+        return result if result.converged else self._from_home(result, target, rotation, tol, budget)
+
+    def _from_home(
+        self,
+        blocked: IKResult,
+        target: tuple[float, float, float],
+        rotation: tuple[tuple[float, ...], ...] | None,
+        tol: float,
+        budget: int,
+    ) -> IKResult:
+        """The free solution from home when it reaches the target clear, else ``blocked``: a seed folded against an
+        obstacle (after a target below the table, say) leads the warm solves into it even once the target is
+        reachable again; the loop then checks the way there like any move."""
+        s = self.solver
+        lower, upper = s._lo, s._hi
+        rot = None if rotation is None else np.array(rotation)
+        r = s._solve_free(target, s.arm.home, rot, tolerance=tol, max_iterations=budget, max_step=None)
+        s._lo, s._hi = lower, upper
+        if not r.converged:
+            return blocked
+        q = r.q.tolist()
+        if any(v < lo or v > hi for v, lo, hi in zip(q, lower, upper, strict=True)):
+            return blocked  # outside the solve's bounds (a trust region around the seed)
+        m = self.measure(q)
+        if m < self.clearance:
+            return blocked
+        return IKResult(np.array(q), r.error, r.iterations, True, r.orientation_error, r.restarts, clearance=m)
 
     def _back_off(
         self,
@@ -167,48 +236,64 @@ class CollisionGuard:
         tol: float,
         budget: int,
     ) -> tuple[list[float], float]:
-        """The clear pose ``q`` moved toward ``target``: the free solution for the farthest point, bisected along
-        the line from ``q``'s tool point to the target, whose pose is clear (``back_off`` halvings)."""
+        """The clear pose ``q`` (clearance ``m``) moved toward ``target``, and its clearance: of the free solutions
+        for the points at ``k / back_off`` of the line from ``q``'s tool point to the target, the farthest whose
+        pose is clear.  ``q`` itself when even the nearest is not (one free solve), or without a solve when ``q``
+        is within ``_AGAINST`` of the clearance: against an obstacle, as after a blocked tick, where the nearest
+        one seldom is."""
         s = self.solver
         lower, upper = s._lo, s._hi
         rot = None if rotation is None else np.array(rotation)
         e0 = s.tool_point(q)
-        trials = []
-        for k in range(self.back_off, 0, -1):  # the points at k / back_off of the way, the farthest first
+        sweeps = min(budget, _BACK_OFF_SWEEPS)
+
+        def trial(k: int) -> list[float]:
             f = k / self.back_off
             point = [a + f * (b - a) for a, b in zip(e0, target, strict=True)]
-            sweeps = min(budget, _BACK_OFF_SWEEPS)
-            trial = s._solve_free(point, q, rot, tolerance=tol, max_iterations=sweeps, max_step=None).q.tolist()
-            trials.append([min(max(v, lo), hi) for v, lo, hi in zip(trial, lower, upper, strict=True)])
+            found = s._solve_free(point, q, rot, tolerance=tol, max_iterations=sweeps, max_step=None).q.tolist()
+            return [min(max(v, lo), hi) for v, lo, hi in zip(found, lower, upper, strict=True)]
+
+        if m < self.clearance + _AGAINST:  # q is against an obstacle (the last tick was blocked): none would be
+            return q, m
+        best = q, m
+        nearest = trial(1)
+        m_near = self.measure(nearest)
+        if m_near >= self.clearance:
+            best = nearest, m_near
+            for k in range(self.back_off, 1, -1):  # the farthest first
+                pose = trial(k)
+                m_k = self.measure(pose)
+                if m_k >= self.clearance:
+                    best = pose, m_k
+                    break
         s._lo, s._hi = lower, upper
-        i, m_i = self.first_clear(trials)
-        return (trials[i], m_i) if i >= 0 else (q, m)
+        return best
 
     def _step(self, q: list[float], j: int, new: float, m: float, checks: list[int]) -> float:
-        """Move joint ``j`` of the clear pose ``q`` toward ``new`` as far as stays clear: the longest clear step
-        of the full one and its halvings (``bisections`` of them, one batched query); returns the clearance of
-        the pose ``q`` ends at."""
-        old = q[j]
-        d = new - old
+        """Move joint ``j`` of the clear pose ``q`` (clearance ``m``) toward ``new`` as far as stays clear; returns
+        the clearance of the pose ``q`` ends at.  The full step, else the longest of its halvings (``bisections`` of
+        them, down to ``2**-bisections`` of it) that stays clear, guided by the values: the clearance falls from
+        ``m`` to ``m_f`` over a fraction ``f`` of the step, so the longest halving within ``f (m - c) / (m - m_f)``
+        of it (where a linear fall would reach the clearance ``c``) is tried next.  A pose against the obstacle
+        in that direction (``m`` at ``c``) stays after one check."""
+        old, c = q[j], self.clearance
         q[j] = new
         checks[0] += 1
-        ok, m_new = self.clear(q)  # the whole step: one pose, the cheap query
-        q[j] = old
-        if ok:
-            q[j] = new
-            return m_new
-        fractions = [0.5**k for k in range(1, self.bisections + 1)]
-        poses = []
-        for f in fractions:
-            pose = q[:]
-            pose[j] = old + f * d
-            poses.append(pose)
-        checks[0] += 1
-        i, m_i = self.first_clear(poses)
-        if i < 0:
-            return m
-        q[j] = poses[i][j]
-        return m_i
+        m_f = self.measure(q)
+        if m_f >= c:
+            return m_f
+        d, f, smallest = new - old, 1.0, 0.5**self.bisections
+        while True:
+            reach = f * (m - c) / (m - m_f)  # m >= c > m_f
+            if reach < smallest:
+                q[j] = old
+                return m
+            f = 0.5 ** math.ceil(-math.log2(reach))  # the longest halving within reach (< f: reach < f)
+            q[j] = old + f * d
+            checks[0] += 1
+            m_f = self.measure(q)
+            if m_f >= c:
+                return m_f
 
     def _resolve_position(
         self, q: list[float], m: float, target: tuple[float, float, float], tol: float, budget: int
@@ -218,15 +303,16 @@ class CollisionGuard:
         lower, upper, w, lev2 = s._lo, s._hi, s.weights, s._lever2
         px, py, pz, ax, ay, az = s._px, s._py, s._pz, s._ax, s._ay, s._az
         fk = s._fk
-        checks = [0]
-        f = fk(q)
+        c, checks = self.clearance, [0]
+        f, stale = fk(q), False
         err = math.dist(f[:3], target)
         sweeps = 0
         while err > tol and sweeps < min(budget, _MAX_SWEEPS) and checks[0] < _MAX_CHECKS:
             sweeps += 1
             before = err
             for j in range(s.n):
-                f = fk(q)  # the chain after the last joint's (maybe shortened) step
+                if stale:  # the chain after the last joint's (maybe shortened) step; the buffers hold it
+                    f, stale = fk(q), False
                 ex, ey, ez = f[0], f[1], f[2]
                 x0, y0, z0 = px[j], py[j], pz[j]
                 ux, uy, uz = ex - x0, ey - y0, ez - z0
@@ -242,17 +328,22 @@ class CollisionGuard:
                 theta = w[j] * math.atan2(cross, dot) * (lever2 / lev2 if lever2 < lev2 else 1.0)
                 new = min(max(q[j] + theta, lower[j]), upper[j])
                 if new != q[j]:
+                    old = q[j]
                     m = self._step(q, j, new, m, checks)
-            err = math.dist(fk(q)[:3], target)
+                    stale = q[j] != old
+            if stale:
+                f, stale = fk(q), False
+            err = math.dist(f[:3], target)
             if before - err < 0.01 * tol:  # no joint brings the tool closer without a collision
                 break
         converged = err <= tol
+        if self.bound.quick(q) < c:  # not near the last note: noted for the loop's goal check (and measured)
+            _, m = self.clear(q)
         return IKResult(np.array(q), err, sweeps, converged, blocked=not converged, clearance=m)
 
     def _resolve_pose(
         self,
         q: list[float],
-        m: float,
         target: tuple[float, float, float],
         rotation: tuple[tuple[float, ...], ...],
         tol: float,
@@ -271,14 +362,12 @@ class CollisionGuard:
             trial = [min(max(v, lo), hi) for v, lo, hi in zip(trial, lower, upper, strict=True)]
             lo_t, hi_t, step = 0.0, 1.0, [a - b for a, b in zip(trial, q, strict=True)]
             checks[0] += 1
-            ok, m_t = self.clear(trial)
-            if not ok:
+            if not self.ok(trial):
                 for _ in range(self.bisections):
                     mid = 0.5 * (lo_t + hi_t)
                     checks[0] += 1
-                    ok_mid, m_mid = self.clear([a + mid * d for a, d in zip(q, step, strict=True)])
-                    if ok_mid:
-                        lo_t, m_t = mid, m_mid
+                    if self.ok([a + mid * d for a, d in zip(q, step, strict=True)]):
+                        lo_t = mid
                     else:
                         hi_t = mid
                 if lo_t == 0.0:
@@ -288,9 +377,10 @@ class CollisionGuard:
             new_cost = r_new.error + 0.1 * r_new.orientation_error
             if new_cost >= cost - 0.01 * tol:
                 if new_cost < cost:
-                    q, m, r = trial, m_t, r_new
+                    q, r = trial, r_new
                 break
-            q, m, r, cost = trial, m_t, r_new, new_cost
+            q, r, cost = trial, r_new, new_cost
         s._lo, s._hi = lower, upper
+        _, m = self.clear(q)  # clear (every pose it moved to was): its clearance, noted for the loop's goal check
         return IKResult(np.array(q), r.error, sweeps, r.converged, r.orientation_error, blocked=not r.converged,
                         clearance=m)  # fmt: skip
