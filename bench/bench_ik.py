@@ -1,6 +1,7 @@
 """Benchmark of the CCD IK solver on wx250s (or --arm), position to 1 mm.
 
-Run: ``python bench/bench_ik.py [--arm wx250s] [--n 500] [--seed 0]``
+Run: ``python bench/bench_ik.py [--arm wx250s] [--n 500] [--seed 0] [--dls-steps 8]`` (``--dls-steps 0``: CCD only,
+the solver before issue 14)
 
 Cases, each checked against the issue's targets:
 
@@ -70,12 +71,18 @@ def main() -> None:
     parser.add_argument("--n", type=int, default=500)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--order", default=None, help="sweep order (default: the solver's)")
+    parser.add_argument("--dls-steps", type=int, default=8, help="DLS steps before CCD (0: CCD only)")
     args = parser.parse_args()
     arm = retarget.load_arm(args.arm)
-    solver = CCDSolver(arm, tolerance=1e-3) if args.order is None else CCDSolver(arm, order=args.order)
+    dls = args.dls_steps
+    solver = (
+        CCDSolver(arm, tolerance=1e-3, dls_steps=dls)
+        if args.order is None
+        else CCDSolver(arm, order=args.order, dls_steps=dls)
+    )
     print(
         f"arm {arm.name} ({arm.n_joints} joints), tolerance 1 mm, budget {solver.max_iterations} sweeps, "
-        f"order {solver.order.value}"
+        f"order {solver.order.value}, {dls} DLS steps first"
     )
 
     # -- warm path -----------------------------------------------------------------------------------------------
@@ -108,7 +115,7 @@ def main() -> None:
 
     # -- the warm path with collisions on ---------------------------------------------------------------------------
     model = CollisionModel.for_arm(arm)
-    safe = CCDSolver(arm, tolerance=1e-3, collision=model)
+    safe = CCDSolver(arm, tolerance=1e-3, collision=model, dls_steps=dls)
     for t in targets[:50]:  # warm-up
         safe.solve(t, q_path[0])
     times, qs, conv, blocked = [], [], 0, 0
@@ -178,7 +185,7 @@ def main() -> None:
 
     # -- position + orientation (6-DOF arms) ----------------------------------------------------------------------
     if arm.n_joints >= 6:
-        pose_solver = CCDSolver(arm, max_iterations=30)
+        pose_solver = CCDSolver(arm, max_iterations=30, dls_steps=dls)
         poses = arm.chain.fk_batch(q_path)
         times, conv, worst = [], 0, 0.0
         q = q_path[0].copy()
@@ -192,7 +199,7 @@ def main() -> None:
         print(f"\npose path (position 1 mm + orientation 0.01 rad), warm, budget 30 sweeps: {len(poses)}")
         print(f"  time        {ms(times)}")
         print(f"  converged   {conv / len(poses):.1%}   worst |dq| {worst:.4f} rad/tick")
-        cold = CCDSolver(arm, max_iterations=300)
+        cold = CCDSolver(arm, max_iterations=300, dls_steps=dls)
         Qp = rng.uniform(arm.lower, arm.upper, (100, arm.n_joints))
         times, conv = [], 0
         for T in arm.chain.fk_batch(Qp):
@@ -205,7 +212,7 @@ def main() -> None:
     reps = 2000
     t_far = rand_targets[0]
     for order in ("base-first", "tip-first"):
-        one = CCDSolver(arm, tolerance=1e-9, max_iterations=1, restarts=0, accel_ratio=0, order=order)
+        one = CCDSolver(arm, tolerance=1e-9, max_iterations=1, restarts=0, accel_ratio=0, order=order, dls_steps=0)
         for _ in range(200):
             one.solve(t_far, home)
         t0 = time.perf_counter()
@@ -213,6 +220,13 @@ def main() -> None:
             one.solve(t_far, home)
         t_sweep = (time.perf_counter() - t0) / reps
         print(f"one solve of exactly one full {order} sweep (incl. call overhead): {t_sweep * 1e6:.1f} us")
+    step = CCDSolver(arm, tolerance=1e-9, max_iterations=1, restarts=0, dls_steps=1)
+    for _ in range(200):  # a warm-path tick: one DLS step, and no budget left for CCD
+        step.solve(targets[1], q_path[0])
+    t0 = time.perf_counter()
+    for _ in range(reps):
+        step.solve(targets[1], q_path[0])
+    print(f"one solve of exactly one DLS step (incl. call overhead): {(time.perf_counter() - t0) / reps * 1e6:.1f} us")
     t_here = arm.fk(home)[0][:3, 3]
     t0 = time.perf_counter()
     for _ in range(reps):

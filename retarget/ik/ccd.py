@@ -16,8 +16,21 @@ size).  Sweeps go base first by default (:class:`SweepOrder`).
 
 Around that update:
 
-- **early-out**: no sweep runs when the tool is already within ``tolerance``, and a
-  sweep stops as soon as it gets there;
+- **smallest motion first** (position targets within reach): up to ``dls_steps`` damped least squares steps
+  from ``q0`` (:mod:`~retarget.ik.dls`), aiming at a quarter of ``tolerance``: a warm tick ends with the
+  weighted minimum-norm motion instead of CCD's exact per-joint minimisers, which swing a joint by tenths of a
+  radian per millimetre near a folded elbow (the tracking error on motion_walk left fell from 97 to 30 mm p95);
+  CCD takes over from where they stop when they do not converge (a jump, a joint limit, a cold solve);
+- **early-out**: nothing runs when the tool is already within a quarter of ``tolerance``
+  (within ``tolerance`` with ``dls_steps=0``), and a sweep stops as soon as it gets there;
+- **locked joints**: a weight of 0 keeps the joint at its ``q0`` value through every step, line search and
+  restart (the redundant roll joints of a position-only target, :func:`~retarget.mapping.workspace.ik_weights`);
+- **the base axis**: near the base's vertical axis a small target move asks the waist for up to a half turn;
+  within ``base_radius`` of it (and for a small move: the tool within ``base_radius`` of the target) the base's
+  weight is scaled by ``(r / base_radius)^2`` and its step in the solve capped, so the arm keeps its branch
+  (reaching over the axis) and accepts a position error of at most ``r``, the target's distance from the axis,
+  wherever the other joints reach the arm's vertical plane; a real move to the other side (outside
+  ``base_radius``, or a jump) still turns the waist;
 - **budget**: ``max_iterations`` sweeps per call (restarts included); when it runs
   out the best pose found is returned with ``converged=False`` and its residual;
 - **line search**: CCD crawls along narrow valleys (a stretched arm); after a sweep
@@ -31,10 +44,13 @@ Around that update:
 - **short levers**: a joint whose lever ``|u⊥|`` is shorter than ``short_lever`` takes
   only ``(|u⊥| / short_lever)^2`` of its update (the Jacobian-transpose scaling), so a
   forearm roll with a straight wrist does not swing far for a millimetre;
-- **trust region** (optional ``max_step``): no joint moves more than that from ``q0``;
+- **trust region** (optional ``max_step``, one value or one per joint): no joint moves more than that from
+  ``q0``; a control loop that passes what each joint can move this tick gets the best pose it can reach;
 - **orientation** (optional ``rotation``): the Wang & Chen position + orientation
   update, ``phi* = atan2(k3, k2 - k1)``, with position terms scaled by the arm's reach so
-  that ``orientation_weight`` is dimensionless;
+  that ``orientation_weight`` is dimensionless; CCD crawls near a wrist singularity (the roll axes aligned),
+  so when it has not converged, the last quarter of the budget (at most ``dls_steps``) polishes the best pose
+  with 6-D DLS steps (demo clip at weight 0.5: 99.6 % of ticks converge, from 98.7 %);
 - **unreachable targets**: the result is the closest pose found, never NaN.
 
 Arrays: ``q`` is ``(n_joints,)`` float64 radians in ``Arm.joint_names`` order;
@@ -58,6 +74,7 @@ import numpy as np
 from retarget.arm.model import Arm
 from retarget.errors import ConfigError, require_count, require_positive
 from retarget.ik.collide import CollisionGuard
+from retarget.ik.dls import dls_pose_steps, dls_steps
 from retarget.ik.result import IKResult
 
 if TYPE_CHECKING:
@@ -69,6 +86,12 @@ _atan2 = math.atan2
 _cos = math.cos
 _sin = math.sin
 _DEFAULT = object()
+#: radians: the base's largest step in one solve at half ``base_radius`` from its axis is a third of this
+_BASE_STEP = 0.1
+#: a DLS solve aims at this fraction of the tolerance squared (a quarter of it): a warm tick then lands close to
+#: its target instead of anywhere within the tolerance, so the tool point does not wander by up to the tolerance
+#: from tick to tick (teleop's Cartesian speed limit held to 5.3 mm per 10 ticks at 5 cm/s, from 7.8)
+_AIM2 = 0.25**2
 _EPS2 = 1e-16  #: |u⊥|^2 |v⊥|^2 below this (m^4): the joint cannot move the tool toward the target
 
 #: What ``CCDSolver._fk`` returns: the tool point ``(x, y, z)``, then the tool rotation row by row (12 floats).
@@ -95,7 +118,10 @@ class Weighting(enum.Enum):
 def joint_weights(
     n: int, weights: Weighting | str | Sequence[float] | np.ndarray = Weighting.UNIFORM, *, exponent: float = 2.0
 ) -> tuple[float, ...]:
-    """The ``(n,)`` per-joint weights of a :class:`Weighting` (or its name) or explicit values in ``(0, 1]``."""
+    """The ``(n,)`` per-joint weights of a :class:`Weighting` (or its name) or explicit values in ``[0, 1]``.
+
+    A weight of 0 *locks* the joint: no update, line search or restart moves it (a position-only target's
+    redundant roll joints, see :func:`retarget.mapping.workspace.ik_weights`); at least one must be > 0."""
     if isinstance(weights, str | Weighting):
         try:
             kind = Weighting(weights)
@@ -116,8 +142,8 @@ def joint_weights(
     values = np.asarray(weights, dtype=np.float64)
     if values.shape != (n,):
         raise ConfigError(f"Expected {n} per-joint weights, got shape {values.shape}", key="weights", value=weights)
-    if not np.all((values > 0) & (values <= 1)):
-        raise ConfigError("per-joint weights must lie in (0, 1]", key="weights", value=values.tolist())
+    if not np.all((values >= 0) & (values <= 1)) or not np.any(values > 0):
+        raise ConfigError("per-joint weights must lie in [0, 1], one > 0", key="weights", value=values.tolist())
     return tuple(values.tolist())
 
 
@@ -151,7 +177,7 @@ class CCDSolver:
 
     - ``tolerance``: metres, position convergence (default 1 mm);
     - ``max_iterations``: sweep budget per solve, restarts included (default 100);
-    - ``weights``: a :class:`Weighting`, its name, or ``n_joints`` values in ``(0, 1]``
+    - ``weights``: a :class:`Weighting`, its name, or ``n_joints`` values in ``[0, 1]`` (0 locks a joint)
       (default uniform, see :class:`Weighting`); ``weight_exponent`` for ``power`` (default 2);
     - ``order``: :class:`SweepOrder` (default base-first);
     - ``orientation_weight``: weight of the orientation terms against the (reach-scaled)
@@ -170,7 +196,12 @@ class CCDSolver:
       lever ``|u⊥|`` is shorter takes ``(|u⊥| / short_lever)^2`` of its update; 0 turns it off;
     - ``max_step``: radians, a trust region: no joint moves more than this from ``q0`` in one
       solve (default None: only the limits).  A control loop may pass its per-tick velocity
-      limit here so that the solution is reachable within the tick;
+      limit here (per call, one value per joint) so that the solution is reachable within the tick;
+    - ``dls_steps``: damped least squares steps tried first on a position target, and at most that many
+      polishing an unconverged pose target (default 8; 0: CCD only); ``damping``: their ``lambda``, metres
+      (default 0.01: at most 50 rad per metre of error along a singular direction);
+    - ``base_radius``: metres (default 0.1 x :attr:`reach`; 0 turns it off; 0 when the first joint is not
+      the base frame's vertical axis): the waist is damped for targets this close to its axis;
     - ``collision``: a :class:`~retarget.collision.CollisionModel`: no result comes closer than its
       clearance to a collision (:mod:`~retarget.ik.collide`; ``IKResult.blocked`` when the target
       cannot be reached clear); None (default): no check.
@@ -198,8 +229,13 @@ class CCDSolver:
         short_lever: float | None = None,
         order: SweepOrder | str = SweepOrder.BASE_FIRST,
         collision: CollisionModel | None = None,
+        dls_steps: int = 8,
+        damping: float = 0.01,
+        base_radius: float | None = None,
     ):
         self.arm = arm
+        self.dls_steps = require_count(dls_steps, "dls_steps", zero=True)
+        self.damping = require_positive(damping, "damping")
         n = self.n = arm.n_joints
         self.tolerance = require_positive(tolerance, "tolerance")
         self.max_iterations = require_count(max_iterations, "max_iterations")
@@ -244,6 +280,15 @@ class CCDSolver:
             0.2 * self.reach if short_lever is None else require_positive(short_lever, "short_lever", zero=True)
         )
         self._lever2 = self.short_lever**2
+        # the base joint turns about the base frame's vertical axis: damped near that axis (singular there)
+        j0 = arm.joints[0]
+        vertical = _rpy_rows(j0.origin_rpy) is None and self._joints[0][3] == 2  # about the base frame's z
+        self.base_radius = (
+            (0.1 * self.reach if base_radius is None else require_positive(base_radius, "base_radius", zero=True))
+            if vertical
+            else 0.0
+        )
+        self._w = self.weights  # the weights of the current solve (the base's damped near its axis)
         # scratch buffers, reused by every solve (a solver is not thread-safe)
         self._px = [0.0] * n
         self._py = [0.0] * n
@@ -328,7 +373,7 @@ class CCDSolver:
         *,
         tolerance: float | None = None,
         max_iterations: int | None = None,
-        max_step: float | None | object = _DEFAULT,
+        max_step: float | Sequence[float] | np.ndarray | None | object = _DEFAULT,
     ) -> IKResult:
         """Solve for the tool point at ``target`` ``(3,)`` metres (base frame), starting from ``q0``.
 
@@ -336,13 +381,14 @@ class CCDSolver:
         ``(3, 3)`` rotation matrix, the target orientation of the tool frame in the base frame
         (position + orientation CCD; an arm with fewer than 6 joints can rarely match a full
         orientation: it then ends at the weighted compromise with ``converged=False``).
-        ``tolerance`` (metres), ``max_iterations`` (sweeps; 0 only measures ``q0``) and ``max_step``
-        (radians per joint from ``q0``; None: only the limits) override the solver's defaults for
-        this call.
+        ``tolerance`` (metres), ``max_iterations`` (sweeps and DLS steps; 0 only measures ``q0``) and
+        ``max_step`` (radians from ``q0``, one value or ``(n_joints,)``; None: only the limits) override the
+        solver's defaults for this call.
 
         Returns an :class:`IKResult`: ``q`` ``(n_joints,)`` float64 radians, always inside the
         limits (the closest pose found when the target is out of reach; never NaN), ``error``
-        metres, ``orientation_error`` radians, ``converged``, ``iterations``, ``restarts``.
+        metres, ``orientation_error`` radians, ``converged``, ``iterations`` (CCD sweeps plus DLS steps),
+        ``restarts``.
         Raises ``ValueError`` for a bad shape or a non-finite input (or a rotation that is not a
         proper rotation matrix) and :class:`~retarget.errors.ConfigError` for a bad override.
 
@@ -386,7 +432,7 @@ class CCDSolver:
         *,
         tolerance: float | None = None,
         max_iterations: int | None = None,
-        max_step: float | None | object = _DEFAULT,
+        max_step: float | Sequence[float] | np.ndarray | None | object = _DEFAULT,
     ) -> IKResult:
         """:meth:`solve` without the collision check."""
         n = self.n
@@ -397,28 +443,37 @@ class CCDSolver:
         step = self.max_step if max_step is _DEFAULT else max_step
         if step is None:
             self._lo, self._hi = lower, upper
-        else:  # a trust region around q0: no joint moves more than `step` in this solve
-            step = require_positive(step, "max_step")
-            self._lo = tuple(lo if v - step < lo else v - step for v, lo in zip(q, lower, strict=True))
-            self._hi = tuple(hi if v + step > hi else v + step for v, hi in zip(q, upper, strict=True))
+        else:  # a trust region around q0: no joint moves more than `step` (per joint) in this solve
+            steps = _steps(step, n)
+            self._lo = tuple(lo if v - d < lo else v - d for v, d, lo in zip(q, steps, lower, strict=True))
+            self._hi = tuple(hi if v + d > hi else v + d for v, d, hi in zip(q, steps, upper, strict=True))
         tol = self.tolerance if tolerance is None else require_positive(tolerance, "tolerance")
         budget = (
             self.max_iterations
             if max_iterations is None
             else require_count(max_iterations, "max_iterations", zero=True)
         )
+        self._w = self.weights
         if rotation is not None:
             return self._solve_pose(tx, ty, tz, _rotation(rotation), q, tol, budget)
         tol2 = tol * tol
+        if self.base_radius > 0.0:
+            self._damp_base(tx, ty, tz, q)
+        bx, by, bz = self.base_pivot
+        can_restart = math.dist((tx, ty, tz), (bx, by, bz)) < self.reach
+        used = 0
+        if self.dls_steps and budget and can_restart:  # the smallest motion first: DLS from q0, aiming past tol
+            err2, used = dls_steps(self, q, tx, ty, tz, tol2 * _AIM2, min(self.dls_steps, budget), self.damping)
+            if err2 <= tol2:
+                return IKResult(np.array(q), math.sqrt(err2), used, True)
+            budget -= used
 
         f = self._fk(q)
         dx, dy, dz = f[0] - tx, f[1] - ty, f[2] - tz
         err2 = dx * dx + dy * dy + dz * dz
         if err2 <= tol2 or budget == 0:
-            return IKResult(np.array(q), math.sqrt(err2), 0, err2 <= tol2)
+            return IKResult(np.array(q), math.sqrt(err2), used, err2 <= tol2)
 
-        bx, by, bz = self.base_pivot
-        can_restart = math.dist((tx, ty, tz), (bx, by, bz)) < self.reach
         best_q, best2 = q[:], err2
         restarts = 0
         rng: random.Random | None = None
@@ -457,7 +512,28 @@ class CCDSolver:
                     dx, dy, dz = f[0] - tx, f[1] - ty, f[2] - tz
                     err2 = dx * dx + dy * dy + dz * dz
             prev2 = err2
-        return IKResult(np.array(best_q), math.sqrt(best2), sweeps, best2 <= tol2, restarts=restarts)
+        return IKResult(np.array(best_q), math.sqrt(best2), used + sweeps, best2 <= tol2, restarts=restarts)
+
+    def _damp_base(self, tx: float, ty: float, tz: float, q: list[float]) -> None:
+        """Near the base's vertical axis (the target's horizontal distance ``r`` from it below ``R = base_radius``)
+        and for a small move (the tool point of ``q`` within ``R`` of the target): scale the base's weight by
+        ``(r / R)^2`` and let it move at most ``_BASE_STEP (r/R)^2 / (1 - (r/R)^2)`` radians from ``q`` in this
+        solve (0 on the axis, no cap at ``R``), so that a target passing near the axis does not flip the waist; the
+        arm keeps its branch and the position error stays below ``r`` wherever the other joints can reach the
+        arm's vertical plane.  A cold solve or a jump (the tool farther than ``R``) is not damped."""
+        bx, by, _ = self.base_pivot
+        radius = self.base_radius
+        r2 = ((tx - bx) ** 2 + (ty - by) ** 2) / (radius * radius)
+        if r2 >= 1.0:
+            return
+        f = self._fk(q)
+        dx, dy, dz = f[0] - tx, f[1] - ty, f[2] - tz
+        if dx * dx + dy * dy + dz * dz > radius * radius:
+            return
+        self._w = (self.weights[0] * r2, *self.weights[1:])
+        cap = _BASE_STEP * r2 / (1.0 - r2)
+        self._lo = (max(self._lo[0], q[0] - cap), *self._lo[1:])
+        self._hi = (min(self._hi[0], q[0] + cap), *self._hi[1:])
 
     def _extrapolate(self, q: list[float], before: list[float], err2: float, tx: float, ty: float, tz: float) -> float:
         """Line search along the last sweep's step ``q - before``: try ``q + alpha (q - before)``, alpha = 2, 4, 8, ...
@@ -491,8 +567,12 @@ class CCDSolver:
         lower, upper = self._lo, self._hi
         if k <= self.local_restarts:
             sigma = self.perturbation * k
-            return [min(max(b + rng.gauss(0.0, sigma), lo), hi) for b, lo, hi in zip(best, lower, upper, strict=True)]
-        return [rng.uniform(lo, hi) for lo, hi in zip(lower, upper, strict=True)]
+            seed = [min(max(b + rng.gauss(0.0, sigma), lo), hi) for b, lo, hi in zip(best, lower, upper, strict=True)]
+        else:
+            seed = [rng.uniform(lo, hi) for lo, hi in zip(lower, upper, strict=True)]
+        # locked joints and a damped base (a target near its axis) keep their value: a new seed must not flip it
+        keep = [w < full or w == 0.0 for w, full in zip(self._w, self.weights, strict=True)]
+        return [b if k else x for x, b, k in zip(seed, best, keep, strict=True)]
 
     def _sweep(
         self, q: list[float], tx: float, ty: float, tz: float, tol2: float, fresh: tuple[float, ...] | None
@@ -504,7 +584,7 @@ class CCDSolver:
         f = self._fk(q) if fresh is None else fresh
         ex, ey, ez = f[0], f[1], f[2]
         px, py, pz, ax, ay, az = self._px, self._py, self._pz, self._ax, self._ay, self._az
-        lower, upper, w = self._lo, self._hi, self.weights
+        lower, upper, w = self._lo, self._hi, self._w
         lev2 = self._lever2
         for j in range(self.n - 1, -1, -1):
             x0, y0, z0 = px[j], py[j], pz[j]
@@ -554,7 +634,7 @@ class CCDSolver:
         f = self._fk(q) if fresh is None else fresh
         ex, ey, ez = f[0], f[1], f[2]
         px, py, pz, ax, ay, az = self._px, self._py, self._pz, self._ax, self._ay, self._az
-        lower, upper, w = self._lo, self._hi, self.weights
+        lower, upper, w = self._lo, self._hi, self._w
         lev2 = self._lever2
         n = self.n
         for j in range(n):
@@ -641,7 +721,8 @@ class CCDSolver:
         sweeps = restarts = 0
         rng: random.Random | None = None
         lower, upper = self._lo, self._hi
-        while not (perr <= tol and oerr <= rtol) and sweeps < budget:
+        ccd_budget = budget - min(self.dls_steps, budget // 4)  # the rest is kept for the DLS polish
+        while not (perr <= tol and oerr <= rtol) and sweeps < ccd_budget:
             sweeps += 1
             before = q[:]
             prev = cost
@@ -672,6 +753,13 @@ class CCDSolver:
                     cost, perr, oerr = measure(q)
         _, perr, oerr = best
         converged = perr <= tol and oerr <= rtol
+        left = min(self.dls_steps, budget - sweeps)
+        if not converged and left > 0:  # CCD crawls near a wrist singularity: DLS polishes the best pose
+            done, used = dls_pose_steps(self, best_q, (tx, ty, tz), rot, tol, rtol, left, self.damping)
+            sweeps += used
+            if used:
+                cost, perr, oerr = measure(best_q)
+                converged = done
         return IKResult(np.array(best_q), perr, sweeps, converged, orientation_error=oerr, restarts=restarts)
 
     def _sweep_pose(self, q: list[float], tx: float, ty: float, tz: float, g: tuple[float, ...]) -> tuple[float, float]:
@@ -888,6 +976,16 @@ def _vec3(value: Sequence[float] | np.ndarray, what: str) -> tuple[float, float,
     if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
         raise ValueError(f"Expected a finite {what}, got {[x, y, z]}")
     return x, y, z
+
+
+def _steps(value: object, n: int) -> tuple[float, ...]:
+    """``max_step`` as ``n`` radians > 0: one number for every joint, or one per joint."""
+    if isinstance(value, int | float):
+        return (require_positive(value, "max_step"),) * n
+    values = np.asarray(value, dtype=np.float64).ravel()
+    if values.shape != (n,):
+        raise ConfigError(f"Expected one max_step or {n}, got shape {values.shape}", key="max_step", value=value)
+    return tuple(require_positive(v, "max_step") for v in values.tolist())
 
 
 def _joint_vector(value: Sequence[float] | np.ndarray, n: int) -> list[float]:

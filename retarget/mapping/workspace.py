@@ -96,22 +96,30 @@ def arm_geometry(arm: Arm) -> ArmGeometry:
     )
 
 
-#: default IK weight of a roll joint (its axis runs through the tool point, so it barely moves it)
-ROLL_WEIGHT = 1e-3
-#: default IK weight of the wrist joints beyond the elbow (keeps the wrist from churning)
-WRIST_WEIGHT = 0.3
+#: default IK weight of a roll joint in position-only mode: 0, the joint is locked and keeps its value
+ROLL_WEIGHT = 0.0
+#: default IK weight of the other joints (the wrist included: the IK's DLS steps share a move among the joints in
+#: proportion to their weights, and a stiff wrist made the shoulder swing near a folded elbow)
+WRIST_WEIGHT = 1.0
+#: a joint is a *roll* when the tool point, at home, lies closer than this fraction of the reach to its axis
+ROLL_LEVER = 0.1
 
 
 def ik_weights(arm: Arm, config: MappingConfig) -> np.ndarray:
-    """Per-joint CCD weights ``(n_joints,)`` in ``(0, 1]`` for following this mapping's targets.
+    """Per-joint CCD weights ``(n_joints,)`` in ``[0, 1]`` for following this mapping's targets.
 
-    Position only (``orientation_weight == 0``), a 6-DOF arm is redundant and CCD's
-    exact per-joint steps make the redundant joints churn (a roll joint near a
-    singularity swings by radians for a millimetre).  So by default a *roll* joint
-    (its axis within 25 degrees of the line from its pivot to the tool, at home) gets
-    ``ROLL_WEIGHT`` (it stays put) and joints after the third get ``WRIST_WEIGHT``;
-    with an orientation target every joint gets 1.  ``config.joint_weights``
-    overrides them by joint name, or gives all of them.
+    Position only (``orientation_weight == 0``), a 6-DOF arm is redundant and a roll joint cannot help a point
+    target: its axis runs (nearly) through the tool point, so it would spin by radians for a millimetre.  So by
+    default a *roll* joint (at home, the tool point within ``ROLL_LEVER`` x the reach of its axis: forearm_roll and
+    wrist_rotate on the wx250s and vx300s, 0 mm from it; the Koch's wrist_roll, 16 mm, 0.06 reach; every other
+    joint of the bundled arms is 0.2 reach or more away) gets ``ROLL_WEIGHT`` = 0: the IK locks it and it keeps
+    its value (at least three joints stay free).  The others get ``WRIST_WEIGHT`` = 1.  With an orientation
+    target every joint gets 1.  ``config.joint_weights`` overrides them by joint name, or gives all of them.
+
+    >>> import retarget
+    >>> from retarget.mapping.config import MappingConfig
+    >>> ik_weights(retarget.load_arm("wx250s"), MappingConfig()).tolist()
+    [1.0, 1.0, 1.0, 0.0, 1.0, 0.0]
     """
     n = arm.n_joints
     weights = _default_weights(arm) if config.orientation_weight == 0 else np.ones(n)
@@ -128,20 +136,22 @@ def ik_weights(arm: Arm, config: MappingConfig) -> np.ndarray:
 
 
 def _default_weights(arm: Arm) -> np.ndarray:
-    """Position-only weights ``(n_joints,)``: :data:`ROLL_WEIGHT` on roll joints, :data:`WRIST_WEIGHT` past joint 3."""
+    """Position-only weights ``(n_joints,)``: :data:`ROLL_WEIGHT` on roll joints, :data:`WRIST_WEIGHT` on the rest."""
     n = arm.n_joints
-    weights = np.ones(n)
     _, points = arm.fk(arm.home)
     tool = points[-1]
+    reach = arm_geometry(arm).reach
     rotations = _joint_rotations(arm, arm.home)
+    rolls = []
     for i in range(n):
         axis = rotations[i] @ np.asarray(arm.joints[i].axis, dtype=np.float64)
+        axis /= np.linalg.norm(axis)
         lever = tool - points[i]
-        length = np.linalg.norm(lever)
-        if length > 1e-9 and abs(axis @ lever) / (np.linalg.norm(axis) * length) > math.cos(math.radians(25)):
-            weights[i] = ROLL_WEIGHT
-        elif i >= 3:
-            weights[i] = WRIST_WEIGHT
+        if np.linalg.norm(lever - axis * float(axis @ lever)) < ROLL_LEVER * reach:  # the tool's distance to the axis
+            rolls.append(i)
+    weights = np.full(n, WRIST_WEIGHT)
+    if n - len(rolls) >= 3:  # a point target needs three free joints
+        weights[rolls] = ROLL_WEIGHT
     return weights
 
 
