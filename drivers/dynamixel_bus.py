@@ -145,7 +145,10 @@ class DynamixelBus:
         profile: velocity- or time-based servo profile.
         profile_velocity: rad/s cap of the servo's own profile (VELOCITY); default each joint's max velocity;
             0 = no cap.
-        profile_acceleration: rad/s^2 (VELOCITY); default 0 = unlimited.
+        profile_acceleration: rad/s^2 (VELOCITY); default per joint ``servo_plan.servo_acceleration``: its
+            ``max_acceleration``, or ``max_velocity / (2 dt)`` where that is more (so the servo's profile trails the
+            loop's goals by at most one tick's travel); 0 = unlimited.  The rest move on close uses the joint's
+            ``max_acceleration`` itself.
         profile_time: seconds per move (TIME); default ``dt`` or 0.1 s.  The ramp is a quarter of it.
         dt: the control tick period in seconds; when set, write_goals limits every joint's step per call to
             ``max_velocity * dt`` (from the arm description).  ``step_limit=False`` turns that off.
@@ -957,17 +960,22 @@ class DynamixelBus:
         servos = [s for s in self._joint_servos if s.joint not in held]
         present = self._primary_angles(pulses)
         if self.profile is Profile.TIME:
-            # ramps of a quarter of the move each: the cruise speed is distance / (0.75 * duration)
-            duration = float(np.max(np.abs(rest - present)[moving])) / (0.75 * self.rest_speed)
-            pv = min(int(units.seconds_to_ms(duration)), MAX_PROFILE_MS)
+            # ramps of a quarter of the move each: the cruise speed is distance / (0.75 * duration), its
+            # acceleration 16 distance / (3 duration^2), kept within every moving joint's max_acceleration
+            distance = np.abs(rest - present)[moving]
+            accel_limit = self.arm.max_acceleration[moving]
+            duration = float(np.max(distance)) / (0.75 * self.rest_speed)
+            duration = max(duration, float(np.max(np.sqrt(16.0 * distance / (3.0 * accel_limit)))))
+            pv = min(int(units.seconds_to_ms(duration + 0.0005)), MAX_PROFILE_MS)  # rounded up to whole ms
             values = dict.fromkeys((s.id for s in servos), pv)
             accel = dict.fromkeys(values, pv // 4)
-            link.sync_write(_PROFILE_ACCELERATION.address, _PROFILE_ACCELERATION.size, _u32s(accel))
-        else:
+        else:  # the joint's own acceleration limit (the tick stream's Profile Acceleration is higher, see above)
             values = {
                 s.id: int(units.rad_s_to_velocity_units(min(self.rest_speed, self.arm.joints[s.joint].max_velocity)))
                 for s in servos
             }
+            accel = {s.id: int(units.rad_s2_to_accel_units(self.arm.joints[s.joint].max_acceleration)) for s in servos}
+        link.sync_write(_PROFILE_ACCELERATION.address, _PROFILE_ACCELERATION.size, _u32s(accel))
         link.sync_write(_PROFILE_VELOCITY.address, _PROFILE_VELOCITY.size, _u32s(values))
         goals = {}  # as _send_goals encodes them, for the commanded joints' servos only
         for s in servos:

@@ -21,7 +21,7 @@ from drivers import units
 from drivers.control_table import RETURN_DELAY_UNIT_US, DriveMode, Model, OperatingMode
 from drivers.control_table import model as lookup_model
 from drivers.gripper import gripper_registers
-from retarget.arm.model import Arm
+from retarget.arm.model import Arm, Joint
 from retarget.errors import ConfigError
 
 MAX_PROFILE_MS = 32737  #: the largest Profile Velocity of a time-based profile
@@ -107,13 +107,38 @@ def plan_servos(arm: Arm) -> tuple[ServoPlan, ...]:
     return tuple(plans)
 
 
+DEFAULT_DT = 0.01  #: s, the tick period :func:`servo_acceleration` assumes when the bus has none (100 Hz)
+
+
+def servo_acceleration(joint: Joint, dt: float | None = None) -> float:
+    """The servo's own Profile Acceleration (rad/s^2) for ``joint`` when the loop streams a goal every ``dt`` s
+    (None: :data:`DEFAULT_DT`): the larger of the joint's ``max_acceleration`` and ``max_velocity / (2 dt)``.
+
+    The velocity-based profile plans each new goal to a stop on it, from the present velocity (the e-Manual's
+    "velocity override"), so a servo streamed goals along a trajectory moving at ``v`` trails it by about
+    ``v^2 / (2 a)``, where it has to start braking: at our own limit that is up to 0.11 rad at 180 deg/s (measured
+    on the simulator: tool 39 mm behind the last goal, p95 on motion_dance).  ``max_velocity / (2 dt)`` keeps
+    that trail within one tick's travel at full speed (a quarter of it at half speed), and is still a cap on a
+    goal that jumps (full speed in two ticks, where Profile Acceleration 0 would take the motor's stall current).
+    Profile Velocity 0 turns the whole profile off (the e-Manual: no profile, step), so this then does nothing.
+
+    >>> from retarget.arm.model import Joint
+    >>> j = Joint("j", (0, 0, 0), (0, 0, 0), (0, 0, 1), -1.0, 1.0, math.pi, (), max_acceleration=40.0)
+    >>> round(servo_acceleration(j), 1), round(servo_acceleration(j, dt=0.002), 1)
+    (157.1, 785.4)
+    """
+    period = DEFAULT_DT if dt is None else dt
+    return max(joint.max_acceleration, joint.max_velocity / (2.0 * period))
+
+
 @dataclass(frozen=True)
 class ServoSettings:
     """The bus options that become register values (see ``DynamixelBus`` for their meaning)."""
 
     profile: Profile = Profile.VELOCITY
     profile_velocity: float | None = None  #: rad/s (VELOCITY); None: the joint's max velocity; 0: no cap
-    profile_acceleration: float | None = None  #: rad/s^2 (VELOCITY); None or 0: unlimited
+    #: rad/s^2 (VELOCITY); None: :func:`servo_acceleration` of the joint (the arm's gripper: unlimited); 0: unlimited
+    profile_acceleration: float | None = None
     profile_time: float | None = None  #: s per move (TIME); None: ``dt`` or 0.1 s
     dt: float | None = None  #: the control tick period, s
     return_delay_us: int = 0
@@ -135,7 +160,10 @@ class ServoSettings:
         else:
             speed = max_velocity if self.profile_velocity is None else min(self.profile_velocity, max_velocity)
             pv = min(int(units.rad_s_to_velocity_units(speed)), velocity_limit)
-            pa = int(units.rad_s2_to_accel_units(self.profile_acceleration or 0.0))
+            accel = self.profile_acceleration
+            if accel is None:
+                accel = 0.0 if s.role == "gripper" else servo_acceleration(arm.joints[s.joint], self.dt)
+            pa = int(units.rad_s2_to_accel_units(accel))
         eeprom = {  # Operating Mode first: changing it resets the profile registers
             "Operating Mode": int(OperatingMode.POSITION),
             "Drive Mode": int(drive),

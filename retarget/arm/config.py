@@ -33,7 +33,7 @@ TOML schema (every angle in the file is in DEGREES, lengths in metres; the loade
     axis = [0, 0, 1]                  # required, in the joint frame, any non-zero length
     limits = [-180, 180]              # required, [lower, upper] degrees, lower < upper
     max_velocity = 180                # required, degrees per second, > 0
-    max_acceleration = 600            # optional, degrees per second^2 (default 600: max speed in 0.3 s)
+    max_acceleration = 2500           # optional, degrees per second^2 (default 2500: 180 deg/s in 72 ms)
     calibration_hint = "upper arm vertical"   # optional: how to set it for the calibration pose
     servos = [                        # required, primary first, then shadows
         { id = 2, model = "XM430-W350" },
@@ -71,8 +71,8 @@ runs (``MAX_LENGTH``, ``MAX_ANGLE``, ``MIN_VELOCITY``/``MAX_VELOCITY``,
 - angles (``rpy``, ``limits``, gripper ``limits``, poses): within +-360 degrees;
 - ``max_velocity``: 0.1 to 1000 deg/s (the fastest supported servo, the XL330-M288, turns
   at 618 deg/s without load);
-- ``max_acceleration``: 1 to 100000 deg/s^2; default 600 (``retarget.arm.model.DEFAULT_MAX_ACCELERATION``:
-  180 deg/s in 0.3 s, the ramp of Interbotix's xs_sdk default profile, 300 ms ramps);
+- ``max_acceleration``: 1 to 100000 deg/s^2; default 2500 (``retarget.arm.model.DEFAULT_MAX_ACCELERATION``,
+  where its source is given);
 - ``baud``: one the servos and dynamixel-sdk support: 9600, 57600, 115200, 1, 2, 3
   or 4 Mbps (``retarget.arm.model.SUPPORTED_BAUDS``; not 4.5 Mbps, which the SDK
   refuses and the XL330-M288 lacks);
@@ -98,6 +98,7 @@ import numpy as np
 
 from retarget.arm.geometry import read_collision, read_world
 from retarget.arm.model import (
+    DEFAULT_MAX_ACCELERATION,
     MAX_CURRENT_LIMIT_MA,
     SERVO_MODELS,
     SUPPORTED_BAUDS,
@@ -108,6 +109,8 @@ from retarget.arm.model import (
     Servo,
 )
 from retarget.errors import ConfigError
+
+_ACCEL_DEG = math.degrees(DEFAULT_MAX_ACCELERATION)  #: deg/s^2, a joint's max_acceleration when unset
 
 __all__ = ["URDF_SUFFIXES", "ArmFileReader", "arm_dirs", "is_urdf", "list_arms", "read_toml", "resolve_arm"]
 
@@ -404,7 +407,7 @@ class ArmFileReader:
             lower=lo,
             upper=hi,
             max_velocity=self.velocity(t["max_velocity"], f"{key}.max_velocity"),
-            max_acceleration=self.acceleration(t.get("max_acceleration", 600.0), f"{key}.max_acceleration"),
+            max_acceleration=self.acceleration(t.get("max_acceleration", _ACCEL_DEG), f"{key}.max_acceleration"),
             servos=self.servos(t["servos"], f"{key}.servos"),
             calibration_hint=self.string(t["calibration_hint"], f"{key}.calibration_hint")
             if "calibration_hint" in t

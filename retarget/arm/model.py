@@ -67,10 +67,13 @@ class Servo:
     offset: int = 0
 
 
-#: rad/s^2 (600 deg/s^2), a joint's acceleration limit when its arm file sets none: 180 deg/s reached in
-#: 0.3 s, the ramp of Interbotix's xs_sdk default (``modes.yaml``: ``profile_type: time``,
-#: ``profile_acceleration: 300`` ms ramps of a ``profile_velocity: 2000`` ms move)
-DEFAULT_MAX_ACCELERATION = math.radians(600.0)
+#: rad/s^2 (2500 deg/s^2 = 43.6 rad/s^2), a joint's acceleration limit when its arm file sets none: 180 deg/s
+#: reached in 72 ms.  Chosen by measurement (``bench/bench_smooth.py``, issue 14): it is 10x below the peak the
+#: velocity-only loop commanded on motion_dance (442.8 rad/s^2 on wx250s), the issue's target; Interbotix's xs_sdk
+#: default ramp (``modes.yaml``: ``profile_type: time``, 300 ms ramps of a 2000 ms move: 600 deg/s^2 at 180 deg/s)
+#: is a point-to-point setting: at 600 the loop trailed motion_dance by p95 170 mm.  The servo's own Profile
+#: Acceleration (the e-Manual's 214.577 rev/min^2 units) is set from it: ``drivers.servo_plan.servo_acceleration``.
+DEFAULT_MAX_ACCELERATION = math.radians(2500.0)
 
 
 @dataclass(frozen=True)

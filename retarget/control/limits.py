@@ -29,7 +29,7 @@ from collections.abc import Sequence
 import numpy as np
 import numpy.typing as npt
 
-from retarget.control.profile import profile_step
+from retarget.control.profile import braking_run, stop_speed
 
 __all__ = ["StepLimiter"]
 
@@ -58,7 +58,7 @@ class StepLimiter:
     (0.12, 0.06)
     """
 
-    __slots__ = ("bounds", "max_step", "max_accel", "q", "velocity", "goal", "_zero")
+    __slots__ = ("bounds", "max_step", "max_accel", "q", "velocity", "goal", "_zero", "_far")
 
     def __init__(
         self,
@@ -76,10 +76,22 @@ class StepLimiter:
         self.velocity: list[float] = self._zero  #: of the commanded pose, rad per slot
         #: rad per slot^2, per joint; None: no acceleration limit
         self.max_accel: list[float] | None = None if max_accel is None else max_accel.tolist()
+        #: rad per joint: from this far from a joint limit, its braking bound allows a full step
+        accel = self.max_accel or []
+        self._far = [braking_run(m, a) for m, a in zip(self.max_step, accel, strict=False)]
         self.goal: list[float] | None = None  #: the last tick's goal (rad), for its step; None after a stop
 
+    def state(self) -> tuple[list[float], list[float], list[float] | None]:
+        """The pose, velocity and last goal, for :meth:`restore` (the lists are replaced, never changed in place)."""
+        return self.q, self.velocity, self.goal
+
+    def restore(self, state: tuple[list[float], list[float], list[float] | None]) -> None:
+        """Back to a :meth:`state` (a tick whose step was not written)."""
+        self.q, self.velocity, self.goal = state
+
     def hold(self) -> None:
-        """A tick that keeps the commanded pose: it stands still at once (also with ``max_accel``)."""
+        """A tick that keeps the commanded pose: it stands still at once, also with ``max_accel`` (the loop does
+        this only for the collision check's instant stop; a tick without a goal brakes, :meth:`brake`)."""
         self.velocity = self._zero
         self.goal = None
 
@@ -144,10 +156,27 @@ class StepLimiter:
             v0 = [_toward_zero(x, a * (elapsed - 1)) for x, a in zip(v0, accel, strict=True)]
         limited = False
         q_next, v_next = [], []
+        far = self._far
+        # profile_step inlined (it is the reference, tested against this), except that a joint limit's braking
+        # bound is computed only within a braking run of it (farther off it allows a full step anyway)
         for i, (x0, v, g, m, a, (lo, hi)) in enumerate(zip(self.q, v0, goal, limits, accel, self.bounds, strict=True)):
             u = 0.0 if last is None else (g - last[i]) / elapsed
             u = m if u > m else -m if u < -m else u
-            w = profile_step(x0, v, g, u, m, a, lo, hi)
+            d = g - x0 - u
+            w = u if d == 0.0 else u + stop_speed(d, a) if d > 0.0 else u - stop_speed(-d, a)
+            low, high = v - a, v + a
+            if low < -m:
+                low = -m
+            if high > m:
+                high = m
+            if x0 - lo < far[i]:
+                low = max(low, -stop_speed(x0 - lo, a))
+            if hi - x0 < far[i]:
+                high = min(high, stop_speed(hi - x0, a))
+            if low > high:  # the cap fell below the speed (a tighter max_step): brake at the acceleration limit
+                w = v - a if v > 0.0 else v + a
+            else:
+                w = low if w < low else high if w > high else w
             if (w >= m or w <= -m) and abs(g - x0) > m:
                 limited = True
             y = x0 + w

@@ -6,12 +6,15 @@ moves.  Each tick ``k`` has a slot on the loop's clock, ``t0 + k / rate``.  In i
 
 1. takes the source's goal: a :class:`~retarget.control.source.TickTarget` (a point), a
    :class:`~retarget.control.source.JointGoal` (a pose in joint space: no IK, 0 sweeps) or ``HOLD``
-   (``None``: keep the commanded pose, no IK, on to 4);
+   (``None``: no IK; the commanded pose brakes to rest at the acceleration limit, on to 4);
 2. solves IK for a point with the :class:`~retarget.control.source.TickSolver` (the arm's
    :class:`~retarget.ik.CCDSolver`), warm-started from the commanded pose moved on by half its last step,
    within ``ik_iterations`` sweeps (the per-tick budget);
 3. limits each joint's step to one slot of ``velocity_scale x max_velocity`` (or the JointGoal's tighter
-   ``max_step``), then clamps the pose to the joint limits;
+   ``max_step``) and its change of step to one slot's ``max_acceleration`` (a trapezoidal profile that follows
+   the moving goal and brakes before the joint limits, :mod:`~retarget.control.profile`), then clamps the pose
+   to the joint limits; a goal the collision check blocks is not written: the pose brakes at the acceleration
+   limit when that step is clear, else stops at once (``TickRecord.blocked``);
 4. sends the goals in one ``bus.write_goals``;
 5. reads the present positions back, within the tick or pipelined with the next tick's steps 1-3.
 
@@ -292,9 +295,8 @@ class _Run:
         self.source, self.target_at, self.solve = source, source.target_at, solver.solve
         self.max_ticks, self.recorder = config.max_ticks, recorder
         max_step = arm.max_velocity * config.velocity_scale * (1.0 / config.rate)  # rad per slot
-        # the acceleration limit (StepLimiter's max_accel, arm.max_acceleration) is not switched on yet: the
-        # loop's tests, teleop's instant stops and the tracking error still assume velocity-only steps (issue 14)
-        self.limiter = StepLimiter(arm.lower, arm.upper, max_step, q_cmd)
+        max_accel = arm.max_acceleration * (1.0 / config.rate) ** 2  # rad per slot^2: the trapezoidal profile
+        self.limiter = StepLimiter(arm.lower, arm.upper, max_step, q_cmd, max_accel=max_accel)
         self.q_cmd = q_cmd  #: the commanded pose as an array: a new one each tick that moves
         self.target = np.full(3, np.nan)  #: the last target (held ticks report it)
         self.slot = first  #: the running tick's slot
@@ -350,11 +352,16 @@ class _Run:
         goal = self.target_at(k, slot_time)
         limiter = self.limiter
         self.blocked = False
-        if goal is None:  # hold: no IK, the goals stay
-            self.recorder.series.holds += 1
-            limiter.hold()
-            return 0.0, 0, True, False, False
         elapsed = k - self.last_slot
+        before = limiter.state()
+        if goal is None:  # hold: no IK; brake to rest at the acceleration limit (nothing when already still)
+            self.recorder.series.holds += 1
+            if limiter.brake(elapsed):
+                if not self._allowed():  # the braking step collides: stop at once (counted as blocked)
+                    self.recorder.series.blocked += 1
+                    self._stop_here()
+                self.q_cmd = np.array(limiter.q)
+            return 0.0, 0, True, False, False
         if isinstance(goal, JointGoal):  # a pose in joint space: no IK
             self.target = goal.target
             limited = limiter.step(goal.q.tolist(), elapsed, goal.max_step)
@@ -366,14 +373,25 @@ class _Run:
             error, sweeps, converged = result.error, result.iterations, result.converged
             if result.blocked:  # IK ended at the nearest clear pose: the target needs a colliding one
                 self.recorder.series.ik_blocked += 1
-        if self.check is not None and not self.check.allows(self.q_cmd.tolist(), limiter.q):
-            self.blocked = True  # not written: the arm holds the last goal
+        if not self._allowed():  # not written: brake at the limit instead when that step is clear, else stop here
+            self.blocked = True
             self.recorder.series.blocked += 1
-            limiter.q = self.q_cmd.tolist()
-            limiter.hold()
-            return error, sweeps, converged, clamped, limited
+            limiter.restore(before)
+            if limiter.brake(elapsed) and not self._allowed():
+                self._stop_here()
         self.q_cmd = np.array(limiter.q)
         return error, sweeps, converged, clamped, limited
+
+    def _allowed(self) -> bool:
+        """Whether the step from the commanded pose to the limiter's keeps the clearance (no model: always)."""
+        return self.check is None or self.check.allows(self.q_cmd.tolist(), self.limiter.q)
+
+    def _stop_here(self) -> None:
+        """The collision check's instant stop: the limiter back at the commanded pose, at rest (the one step that
+        may exceed the acceleration limit; ``TickRecord.blocked`` marks it)."""
+        self.blocked = True
+        self.limiter.q = self.q_cmd.tolist()
+        self.limiter.hold()
 
 
 class _Reporter:

@@ -83,7 +83,7 @@ def park(arm: Arm, bus: Bus, *, config: LoopConfig, clock: Clock, stop: threadin
     log.warning("the straight move to rest collides: going through home first")
     speed = np.minimum(config.lead_in_speed or 0.5, config.velocity_scale * arm.max_velocity)
     target = np.asarray(arm.fk(route[0])[0][:3, 3], dtype=np.float64)
-    leg = LeadIn.plan(q, route[0], speed=speed, rate=config.rate, target=target)
+    leg = LeadIn.plan(q, route[0], speed=speed, rate=config.rate, target=target, accel=arm.max_acceleration)
     run_ticks(arm, _Moves(leg), CCDSolver(arm), config=replace(config, max_ticks=None), clock=clock, bus=bus,
               stop=stop)  # fmt: skip
     return True

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["profile_step", "stop_speed"]
+__all__ = ["braking_run", "profile_step", "stop_speed"]
 
 
 def stop_speed(d: float, a: float) -> float:
@@ -40,6 +40,16 @@ def stop_speed(d: float, a: float) -> float:
         return 0.0
     n = math.floor((math.sqrt(1.0 + 8.0 * d / a) - 1.0) * 0.5)  # the most whole steps a, 2a, .. na within d
     return (d + a * n * (n + 1) * 0.5) / (n + 1)
+
+
+def braking_run(v: float, a: float) -> float:
+    """An upper bound (rad) of the travel of a joint braking at ``a`` from the step ``v`` (>= 0): from at least this
+    far from a joint limit, :func:`stop_speed` allows ``v`` or more (so the limit's bound need not be computed).
+
+    >>> braking_run(0.1, 0.01) >= 0.1 + 0.09 + 0.08 + 0.07 + 0.06 + 0.05 + 0.04 + 0.03 + 0.02 + 0.01
+    True
+    """
+    return v * v / (2.0 * a) + v + a
 
 
 def profile_step(q: float, v: float, g: float, u: float, vmax: float, a: float, lo: float, hi: float) -> float:

@@ -127,11 +127,14 @@ def test_a_fault_during_the_rest_move_freezes_that_joint_only(make_bus, url, sim
     assert "could not move" not in caplog.text
     assert "elbow stops where it is" in caplog.text
     assert bus.status().hardware_errors == {4: ("overload",)}
-    # the elbow stopped 0.5 s into the move at the rest speed (in 0.229 rpm units); its healthy shadow stopped
-    # with it, at most one wait (0.05 s) later
+    # the elbow stopped 0.5 s into the move at the rest speed (in 0.229 rpm units), which it reached at its
+    # max_acceleration (the rest move's Profile Acceleration, in 214.577 rev/min^2 units): speed^2 / 2a behind a
+    # jump to speed; its healthy shadow stopped with it, at most one wait (0.05 s) later
     speed = float(units.velocity_units_to_rad_s(units.rad_s_to_velocity_units(bus.rest_speed)))
-    assert joint_angle(sim_bus, 4) == pytest.approx(0.5 * speed, abs=units.RAD_PER_PULSE)
-    assert 0.5 * speed <= joint_angle(sim_bus, 5) <= 0.55 * speed + units.RAD_PER_PULSE
+    accel = float(units.accel_units_to_rad_s2(units.rad_s2_to_accel_units(arm.joints[ELBOW].max_acceleration)))
+    travel = 0.5 * speed - speed**2 / (2 * accel)
+    assert joint_angle(sim_bus, 4) == pytest.approx(travel, abs=units.RAD_PER_PULSE)
+    assert travel <= joint_angle(sim_bus, 5) <= travel + 0.05 * speed + units.RAD_PER_PULSE
     for j, joint in enumerate(arm.joints):
         if j != ELBOW:
             for s in joint.servos:

@@ -105,3 +105,19 @@ def test_stop_speed_is_the_largest_speed_that_stops_within_d(d: float, a: float)
 
 def test_profile_step_from_rest_accelerates_by_a() -> None:
     assert profile_step(0.0, 0.0, 5.0, 0.0, 1.0, 0.1, -9.0, 9.0) == pytest.approx(0.1)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_limiters_inlined_step_is_profile_step(seed: int) -> None:
+    """StepLimiter inlines profile_step (skipping the joint limits' bound a braking run away from them): the same
+    step, tick for tick, near the limits and far from them."""
+    rng = np.random.default_rng(seed)
+    lo, hi, vmax, a = -1.0, 1.0, 0.08, 0.01
+    limiter = StepLimiter(np.array([lo]), np.array([hi]), np.array([vmax]), np.array([0.0]), max_accel=np.array([a]))
+    q, v, last = 0.0, 0.0, None
+    for g in rng.uniform(-1.5, 1.5, 300).repeat(3):
+        u = 0.0 if last is None else float(np.clip(g - last, -vmax, vmax))
+        w = profile_step(q, v, g, u, vmax, a, lo, hi)
+        limiter.step([g], elapsed=1)
+        assert limiter.q[0] == pytest.approx(min(max(q + w, lo), hi), abs=1e-12)
+        q, v, last = limiter.q[0], limiter.velocity[0], g
