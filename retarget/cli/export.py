@@ -4,8 +4,9 @@ The trajectory is what ``retarget replay`` would command, tick by tick, at
 ``--rate``: IK warm-started from the previous tick, joint limits and velocity
 limits applied.  It starts at the IK solution of the first target (no lead-in
 from a rest pose: there is no arm; on a bus, replay's lead-in moves there first
-and then commands this trajectory).  Columns: ``time_s`` then one ``<joint>_rad`` per joint
-(radians, the arm's joint order).
+and then commands this trajectory).  The clip's targets are low-passed without lag first (``--filter-cutoff``,
+default 4 Hz; ``--no-filter``).  Columns: ``time_s`` then one ``<joint>_rad`` per joint (radians, the arm's
+joint order).
 """
 
 from __future__ import annotations
@@ -72,7 +73,9 @@ def run(args: argparse.Namespace) -> int:
         f"-> {args.output}; IK {summary.ik_converged_pct:.1f}% converged, "
         f"clamped {summary.clamped_ticks}, velocity-limited {summary.velocity_limited_ticks}, "
         f"blocked {summary.blocked_ticks} (IK stopped short by a collision {summary.ik_blocked_ticks}), "
-        f"pushed out of blocked zones {summary.pushed_targets}",
+        f"pushed out of blocked zones {summary.pushed_targets}; "
+        f"tracking error p95 {summary.tracking_p95_mm or 0:.1f} mm, "
+        f"joint acceleration peak {summary.accel_peak_rad_s2 or 0:.0f} rad/s^2",
         file=sys.stderr,
     )
     return 0

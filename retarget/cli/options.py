@@ -34,8 +34,7 @@ OPTIONS: dict[str, str] = {
     "mapping.origin": "--origin",
     "mapping.floor": "--floor",
     "mapping.orientation_weight": "--orientation-weight",
-    # retarget.mapping.filter (the zero-phase low-pass of a clip's targets; --no-filter sets it to 0)
-    "cutoff_hz": "--filter-cutoff",
+    "mapping.cutoff_hz": "--filter-cutoff",  # the zero-phase low-pass of a clip's targets (--no-filter: 0)
     # retarget.collision.CollisionModel (the CLI takes the clearance in mm and checks it first)
     "clearance": "--clearance",
     # retarget.arm.load_arm: the ends of a URDF chain
@@ -53,6 +52,9 @@ OPTIONS: dict[str, str] = {
     "rpy": "--rpy",
     "address": "--udp",
     "base_pose": "--base-pose",
+    # retarget.mapping.filter.OneEuro: teleop's stream filter
+    "min_cutoff": "--filter-min-cutoff",
+    "beta": "--filter-beta",
     # drivers.control_table.parse_ids; sim.Faults.from_options (retarget sim's fault options)
     "ids": "--ids",
     "drop": "--drop",

@@ -56,6 +56,7 @@ from retarget.control.safety import Route, require_route
 from retarget.control.source import JointGoal, TargetSource, TickGoal, TickSolver, TickTarget
 from retarget.control.stats import TickStats
 from retarget.control.summary import RunSummary
+from retarget.control.tracking import Trajectory, following
 from retarget.errors import BusError, ConfigError
 from retarget.ik.ccd import CCDSolver
 from retarget.mapping.targets import Targets
@@ -215,6 +216,7 @@ class ControlLoop:
             lead_in = bus is not None
         lead_to = self.initial_pose() if lead_in and self.config.lead_in_speed > 0 else None
         source = ClipSource(self, lead_in_to=lead_to)
+        trajectory = Trajectory()  # the clip's ticks, for the tracking error and the acceleration (tracking.py)
         try:
             ticks = run_ticks(
                 self.arm,
@@ -224,7 +226,7 @@ class ControlLoop:
                 clock=self.clock,
                 bus=bus,
                 q_start=q_start,
-                on_tick=self.on_tick,
+                on_tick=trajectory.chain(self.on_tick),
                 on_progress=self.on_progress,
                 progress_time=self.progress_time,
                 stop=self._stop,
@@ -232,14 +234,19 @@ class ControlLoop:
             )
         except BusError as exc:  # the summary of the ticks that ran goes with the error
             if isinstance(exc.stats, TickStats):
-                exc.summary = self._summary(exc.stats)
+                exc.summary = self._summary(exc.stats, trajectory)
             raise
-        return self._summary(ticks)
+        return self._summary(ticks, trajectory)
 
-    def _summary(self, ticks: TickStats) -> RunSummary:
-        """The summary of a run that ended with ``ticks``."""
+    def _summary(self, ticks: TickStats, trajectory: Trajectory | None = None) -> RunSummary:
+        """The summary of a run that ended with ``ticks`` (and how it followed the targets: ``trajectory``)."""
         played = (ticks.last_slot + 1) * self.config.speed / self.config.rate if ticks.last_slot >= 0 else 0.0
-        summary = ticks.summary(arm=self.arm.name, clip=self.clip_name, frames=self.frames, duration_s=played)
+        measured = None
+        if trajectory is not None:
+            measured = following(self.arm, trajectory, rate=self.config.rate, reference=self.targets.reference)
+        summary = ticks.summary(
+            arm=self.arm.name, clip=self.clip_name, frames=self.frames, duration_s=played, following=measured
+        )
         if self.config.collision is None or self.targets.pushed is None:
             return summary
         first = int(round(self.window[0] / self.targets.frame_time))
@@ -254,7 +261,9 @@ class LeadIn:
     Straight in joint space with a raised-cosine time profile: at slot ``-n_slots - 1 + i`` the pose is
     ``q_from + s_i (q_to - q_from)``, ``s_i = (1 - cos(pi i / n)) / 2``, so it starts and ends at rest, every
     joint arrives together at slot -1, and joint ``j``'s largest step, ``|dq_j| sin(pi / 2n)``, stays within
-    ``speed_j / rate``.  No slots when a single step is already within that speed.
+    ``speed_j / rate``; with ``accel``, its largest change of step, ``|dq_j| (1 - cos(pi / n))``, stays within
+    ``accel_j / rate^2`` too (the loop's acceleration limit then never has to cut it).  No slots when a single
+    step is already within both.
     """
 
     q_from: npt.NDArray[np.float64]
@@ -278,12 +287,18 @@ class LeadIn:
         speed: npt.NDArray[np.float64],
         rate: float,
         target: npt.NDArray[np.float64],
+        accel: npt.NDArray[np.float64] | None = None,
     ) -> LeadIn:
-        """The lead-in at peak joint speeds ``speed`` ``(n_joints,)`` rad/s (> 0) and ``rate`` ticks per second."""
+        """The lead-in at peak joint speeds ``speed`` ``(n_joints,)`` rad/s (> 0), peak accelerations ``accel``
+        ``(n_joints,)`` rad/s^2 (> 0; None: no bound) and ``rate`` ticks per second."""
         q_from = np.asarray(q_from, dtype=np.float64)
         q_to = np.asarray(q_to, dtype=np.float64)
         ratio = float(np.max(np.abs(q_to - q_from) / speed)) * rate  # slots the move takes at constant speed
         n = 0 if ratio <= 1.0 else math.ceil(math.pi / (2.0 * math.asin(1.0 / ratio)))
+        if accel is not None:  # |dq| (1 - cos(pi / n)) <= accel / rate^2, with a hair to spare for rounding
+            worst = float(np.max(np.abs(q_to - q_from) * rate**2 / np.asarray(accel, dtype=np.float64)))
+            if worst > 1.0:
+                n = max(n, math.ceil(math.pi / math.acos(1.0 - (1.0 - 1e-9) / worst)))
         # a hair above speed / rate: the plan's own steps (<= speed / rate up to rounding) pass unchanged
         max_step = tuple((np.broadcast_to(speed, q_from.shape) / rate * (1.0 + 1e-9)).tolist())
         return cls(q_from=q_from, q_to=q_to, target=np.asarray(target, dtype=np.float64), n_slots=n, max_step=max_step)
@@ -388,16 +403,17 @@ def plan_lead_in(
 ) -> LeadIn | Route:
     """The lead-in from ``q_from`` to ``q_to`` (rad): one :class:`LeadIn`, or with ``config.collision`` the legs
     of its safe route (straight, else through home or rest; ConfigError ``collision`` when there is none)."""
+    accel = arm.max_acceleration
     if config.collision is None:
-        return LeadIn.plan(q_from, q_to, speed=speed, rate=config.rate, target=target)
+        return LeadIn.plan(q_from, q_to, speed=speed, rate=config.rate, target=target, accel=accel)
     waypoints = (arm.home, arm.rest)
     poses = require_route(config.collision, q_from, q_to, waypoints=waypoints, what="lead-in to the clip's first pose")
     if len(poses) == 1:
-        return LeadIn.plan(q_from, q_to, speed=speed, rate=config.rate, target=target)
+        return LeadIn.plan(q_from, q_to, speed=speed, rate=config.rate, target=target, accel=accel)
     log.info("lead-in: the straight path collides; going through a safe waypoint")
     legs, start = [], q_from
     for pose in poses:
-        legs.append(LeadIn.plan(start, pose, speed=speed, rate=config.rate, target=target))
+        legs.append(LeadIn.plan(start, pose, speed=speed, rate=config.rate, target=target, accel=accel))
         start = pose
     return Route(tuple(legs))
 

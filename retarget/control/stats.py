@@ -10,11 +10,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
 from retarget.control.summary import RunSummary, summarize
+
+if TYPE_CHECKING:
+    from retarget.control.tracking import Following
 
 __all__ = ["StatsRecorder", "TickSeries", "TickStats"]
 
@@ -112,8 +116,11 @@ class TickStats(TickSeries):
         """Loop-clock seconds from the first slot to the end of the last one."""
         return (self.last_slot + 1) / self.rate if self.last_slot >= 0 else 0.0
 
-    def summary(self, *, arm: str, clip: str, frames: int, duration_s: float) -> RunSummary:
-        """The run's :class:`~retarget.control.summary.RunSummary` (``frames``/``duration_s``: what was played)."""
+    def summary(
+        self, *, arm: str, clip: str, frames: int, duration_s: float, following: Following | None = None
+    ) -> RunSummary:
+        """The run's :class:`~retarget.control.summary.RunSummary` (``frames``/``duration_s``: what was played;
+        ``following``: how the arm followed, :func:`~retarget.control.tracking.following`)."""
         return summarize(
             arm=arm,
             clip=clip,
@@ -145,6 +152,7 @@ class TickStats(TickSeries):
             blocked_ticks=self.blocked + self.lead_in_blocked if self.collision_checked else None,
             ik_blocked_ticks=self.ik_blocked if self.collision_checked else None,
             min_clearance_m=min(self.min_clearance, self.lead_in_min_clearance) if self.collision_checked else None,
+            following=following,
         )
 
 

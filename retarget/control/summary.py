@@ -8,10 +8,13 @@ dict carry their unit in the key (``_s``, ``_ms``, ``_mm``, ``_hz``).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
-from typing import Any
+from dataclasses import asdict, dataclass, replace
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from retarget.control.tracking import Following
 
 __all__ = ["RunSummary", "summarize"]
 
@@ -67,10 +70,58 @@ class RunSummary:
     #: what drove the gripper: "pinch" (thumb tip to index tip), "curl" (fingertips to wrist) of the clip's hand,
     #: "fixed 0.5", "csv FILE"; None: not driven
     gripper: str | None = None
+    #: how the arm follows (:mod:`~retarget.control.tracking`; None: not measured): the tracking error, mm from
+    #: the mapped target (unfiltered) to the commanded tool point, FK of the goals sent, apart from the IK error
+    tracking_median_mm: float | None = None
+    tracking_p95_mm: float | None = None
+    tracking_max_mm: float | None = None
+    #: mm, the targets the loop steered to from the mapped ones: the target filter (and the workspace clamp); in
+    #: teleop the speed-limited setpoint too
+    filter_p95_mm: float | None = None
+    filter_max_mm: float | None = None
+    accel_peak_rad_s2: float | None = None  #: the commanded joint acceleration, peak over joints and ticks
+    accel_rms_rad_s2: float | None = None  #: its root mean square over joints and ticks
+    jerk_peak_rad_s3: float | None = None  #: the commanded joint jerk
+    jerk_rms_rad_s3: float | None = None
+    accel_peak_by_joint: dict[str, float] | None = None  #: rad/s^2, each joint's peak
+    jerk_peak_by_joint: dict[str, float] | None = None  #: rad/s^3
 
     def to_dict(self) -> dict[str, Any]:
-        """A JSON-ready dict (floats rounded to 4 decimals)."""
-        return {k: round(v, 4) if isinstance(v, float) else v for k, v in asdict(self).items()}
+        """A JSON-ready dict (floats rounded to 4 decimals, in the per-joint tables too)."""
+        return {k: _rounded(v) for k, v in asdict(self).items()}
+
+    def with_following(self, following: Following | None) -> RunSummary:
+        """This summary with the figures of ``following`` (None: unchanged)."""
+        if following is None:
+            return self
+        return replace(
+            self,
+            tracking_median_mm=following.tracking_median_mm,
+            tracking_p95_mm=following.tracking_p95_mm,
+            tracking_max_mm=following.tracking_max_mm,
+            filter_p95_mm=following.filter_p95_mm,
+            filter_max_mm=following.filter_max_mm,
+            accel_peak_rad_s2=following.accel_peak,
+            accel_rms_rad_s2=following.accel_rms,
+            jerk_peak_rad_s3=following.jerk_peak,
+            jerk_rms_rad_s3=following.jerk_rms,
+            accel_peak_by_joint=dict(following.accel_peak_by_joint),
+            jerk_peak_by_joint=dict(following.jerk_peak_by_joint),
+        )
+
+    def _following_lines(self) -> list[str]:
+        if self.tracking_median_mm is None:
+            return []
+        worst = max((self.accel_peak_by_joint or {"-": 0.0}).items(), key=lambda kv: kv[1])[0]
+        return [
+            f"  following: tracking error median {self.tracking_median_mm:.2f} mm, p95 {self.tracking_p95_mm:.2f} mm, "
+            f"max {self.tracking_max_mm:.2f} mm (mapped target to commanded tool point); targets steered to "
+            f"p95 {self.filter_p95_mm:.2f} mm, max {self.filter_max_mm:.2f} mm from the mapped ones (filter, clamp; "
+            "teleop: the speed limit's setpoint)",
+            f"  joint acceleration peak {self.accel_peak_rad_s2:.1f} rad/s^2 ({worst}), RMS "
+            f"{self.accel_rms_rad_s2:.2f}; jerk peak {self.jerk_peak_rad_s3:.0f} rad/s^3, "
+            f"RMS {self.jerk_rms_rad_s3:.1f}",
+        ]
 
     def format(self) -> str:
         """Human text, a few lines, for stderr."""
@@ -111,6 +162,7 @@ class RunSummary:
                 f"  IK: {self.ik_converged_pct:.1f}% converged, error median {self.ik_error_median_mm:.2f} mm, "
                 f"p95 {self.ik_error_p95_mm:.2f} mm, max {self.ik_error_max_mm:.2f} mm, "
                 f"{self.ik_sweeps_mean:.1f} sweeps/tick",
+                *self._following_lines(),
                 f"  targets clamped to the workspace: {self.clamped_ticks} ticks; "
                 f"velocity-limited: {self.velocity_limited_ticks} ticks",
                 f"  bus: {self.bus_errors} errors, {self.bus_retries} retries; "
@@ -119,6 +171,14 @@ class RunSummary:
                 *stale,
             ]
         )
+
+
+def _rounded(value: Any) -> Any:
+    if isinstance(value, float):
+        return round(value, 4)
+    if isinstance(value, dict):
+        return {k: _rounded(v) for k, v in value.items()}
+    return value
 
 
 def _pct(values: np.ndarray, q: float) -> float:
@@ -157,18 +217,19 @@ def summarize(
     blocked_ticks: int | None = None,
     min_clearance_m: float | None = None,
     ik_blocked_ticks: int | None = None,
+    following: Following | None = None,
 ) -> RunSummary:
     """A :class:`RunSummary` from per-tick arrays ``(n_ticks,)`` (errors metres, times seconds).
 
     The arrays and counters are the clip's; ``lead_in_ticks``/``lead_in_s`` describe the lead-in before it.
     ``blocked_ticks``, ``min_clearance_m`` (metres; ``inf``: nothing was checked): the collision checks, None
-    without a collision model.
+    without a collision model.  ``following``: how the arm followed (:func:`~retarget.control.tracking.following`).
     """
     err_mm = np.asarray(ik_error_m, dtype=np.float64) * 1e3
     tick_ms = (np.asarray(compute_s) + np.asarray(bus_s)) * 1e3
     compute_ms = np.asarray(compute_s, dtype=np.float64) * 1e3
     n = int(err_mm.size)
-    return RunSummary(
+    summary = RunSummary(
         arm=arm,
         clip=clip,
         dry_run=dry_run,
@@ -212,3 +273,4 @@ def summarize(
             None if min_clearance_m is None or not np.isfinite(min_clearance_m) else float(min_clearance_m) * 1e3
         ),
     )
+    return summary.with_following(following)

@@ -5,9 +5,14 @@ times seconds or milliseconds; flags 0/1)::
 
     time_s, clip_time_s, tick, target_x_m, target_y_m, target_z_m,
     <joint>_cmd_rad ...,  <joint>_present_rad ...,
-    ik_error_mm, ik_sweeps, ik_converged, tick_ms, compute_ms, bus_ms,
+    ik_error_mm, tracking_mm, filter_mm, ik_sweeps, ik_converged, tick_ms, compute_ms, bus_ms,
     clamped, velocity_limited, overrun, bus_retries, lead_in, stale, blocked, min_clearance_mm
 
+``target_*`` is the target the loop steered to (after the target filter and the workspace clamp).
+``tracking_mm`` is the tracking error: the mapped target (unfiltered, clamped) to the commanded tool point, FK of
+the ``_cmd_rad`` goals (:mod:`~retarget.control.tracking`), apart from ``ik_error_mm`` (the IK solution to the
+target steered to); ``filter_mm`` is how far the filter moved the target steered to from the mapped one.  Both
+are empty without a ``tracking`` measure (and on lead-in rows, and before a live run's first target).
 ``<joint>_present_rad`` is empty in a dry run (no bus, nothing was read).  ``lead_in`` is 1 on
 the rows of the lead-in to the clip's first pose that a replay on a bus runs before the clip
 (their ``time_s`` and ``tick`` are negative, ``clip_time_s`` is the clip's start, no IK ran:
@@ -27,10 +32,13 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import IO
 
 from retarget.control.loop import TickRecord
+
+#: one tick's (tracking error, filter deviation) in metres, nan for none (``tracking.TickTracker``)
+Tracking = Callable[[TickRecord], tuple[float, float]]
 
 __all__ = ["TelemetryWriter", "telemetry_columns"]
 
@@ -53,6 +61,8 @@ def telemetry_columns(joint_names: Sequence[str], *, gripper: bool = False) -> l
         *(f"{name}_cmd_rad" for name in joint_names),
         *(f"{name}_present_rad" for name in joint_names),
         "ik_error_mm",
+        "tracking_mm",
+        "filter_mm",
         "ik_sweeps",
         "ik_converged",
         "tick_ms",
@@ -67,11 +77,20 @@ class TelemetryWriter:
     """Writes :class:`~retarget.control.loop.TickRecord` rows to ``target`` (a path, or an open text stream).
 
     A context manager; callable, so it can be passed as ``on_tick``.  A path is
-    opened (truncated) on ``__enter__``/``open()``; a stream is left open on close.
+    opened (truncated) on ``__enter__``/``open()``; a stream is left open on close.  ``tracking`` fills the
+    ``tracking_mm`` and ``filter_mm`` columns (None: empty).
     """
 
-    def __init__(self, target: str | os.PathLike[str] | IO[str], joint_names: Sequence[str], *, gripper: bool = False):
+    def __init__(
+        self,
+        target: str | os.PathLike[str] | IO[str],
+        joint_names: Sequence[str],
+        *,
+        gripper: bool = False,
+        tracking: Tracking | None = None,
+    ):
         self.target = target
+        self.tracking = tracking
         self.joint_names = tuple(joint_names)
         self.gripper = gripper
         self.columns = telemetry_columns(self.joint_names, gripper=gripper)
@@ -122,15 +141,21 @@ class TelemetryWriter:
         cmd = ",".join(f"{v:.6f}" for v in r.q_cmd)
         present = self._blank if r.q_present is None else ",".join(f"{v:.6f}" for v in r.q_present)
         clearance = "" if math.isnan(r.min_clearance) else f"{r.min_clearance * 1e3:.3f}"
+        tracking = self._tracking_cells(r)
         self._file.write(
             f"{r.time:.6f},{r.clip_time:.6f},{r.tick},{target},{cmd},{present},"
-            f"{r.ik_error * 1e3:.4f},{r.ik_sweeps},{int(r.ik_converged)},"
+            f"{r.ik_error * 1e3:.4f},{tracking},{r.ik_sweeps},{int(r.ik_converged)},"
             f"{(r.compute_time + r.bus_time) * 1e3:.4f},{r.compute_time * 1e3:.4f},{r.bus_time * 1e3:.4f},"
             f"{int(r.clamped)},{int(r.velocity_limited)},{int(r.overrun)},{r.bus_retries},{int(r.lead_in)},{r.stale},"
             f"{int(r.blocked)},{clearance}{self._gripper_cells(r)}\n"
         )
         self._file.flush()
         self.rows += 1
+
+    def _tracking_cells(self, r: TickRecord) -> str:
+        if self.tracking is None:
+            return ","
+        return ",".join("" if math.isnan(v) else f"{v * 1e3:.4f}" for v in self.tracking(r))
 
     def _gripper_cells(self, r: TickRecord) -> str:
         if not self.gripper:

@@ -21,6 +21,7 @@ The ``[mapping]`` table of an arm file (every key optional; CLI flags override):
     floor = 0.03                  # lowest target height, metres
     orientation_weight = 0.0      # > 0: follow the hand's orientation too
     joint_weights = { forearm_roll = 0.001 }   # IK weights by joint (or a list, one per joint)
+    cutoff_hz = 6.0               # zero-phase low-pass of a clip's targets (no lag, -6 dB here); 0 = off
 
 This module is math only (it imports neither drivers, sim nor serial).
 """
@@ -37,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from retarget.errors import ConfigError
+from retarget.mapping.filter import DEFAULT_CUTOFF_HZ
 
 __all__ = ["Axis", "MappingConfig", "Side"]
 
@@ -94,6 +96,9 @@ class MappingConfig:
     orientation_weight: float = 0.0  #: 0 = position only; > 0 also targets the tool orientation
     #: IK per-joint weights in (0, 1]: ``{joint: w}`` overriding the defaults (see :func:`ik_weights`), or all of them
     joint_weights: tuple[tuple[str, float], ...] | tuple[float, ...] | None = None
+    #: Hz, the zero-phase low-pass of a clip's mapped targets before the workspace clamp (no lag, -6 dB at the
+    #: cutoff; :func:`~retarget.mapping.filter.zero_phase`); 0 = unfiltered
+    cutoff_hz: float = DEFAULT_CUTOFF_HZ
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -197,6 +202,8 @@ def _convert(name: str, raw: Any, *, key: str, path: str | PathLike[str] | None)
         raise ConfigError(f"Expected {_EXPECTED[name]}", path=path, key=key, value=raw) from None
 
 
+CUTOFF_RANGE = (0.1, 100.0)  #: Hz, the zero-phase cutoffs accepted (besides 0: off)
+
 _EXPECTED = {
     "side": "'left' or 'right'",
     "forward": "one of " + ", ".join(_FORWARD_CHOICES),
@@ -209,6 +216,7 @@ _EXPECTED = {
     "floor": "a finite number of metres",
     "orientation_weight": "a number >= 0",
     "joint_weights": "weights in (0, 1]: a table {joint = w} or one number per joint",
+    "cutoff_hz": f"a cutoff from {CUTOFF_RANGE[0]:g} to {CUTOFF_RANGE[1]:g} Hz, or 0 (no filter)",
 }
 
 
@@ -234,5 +242,7 @@ def _check(name: str, value: Any, *, key: str, path: str | PathLike[str] | None)
             ok = 0 <= value < 1
         elif ok and name == "orientation_weight":
             ok = value >= 0
+        elif ok and name == "cutoff_hz":
+            ok = value == 0 or CUTOFF_RANGE[0] <= value <= CUTOFF_RANGE[1]
     if not ok:
         raise ConfigError(f"Expected {_EXPECTED[name]}", path=path, key=key, value=value)

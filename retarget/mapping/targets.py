@@ -24,17 +24,21 @@ the ``[mapping]`` table of an arm description and by CLI flags
    shoulder joint, so a hanging arm maps in front of the robot, not into the
    base).
 
-Targets outside the :class:`~retarget.mapping.workspace.Workspace` (a shell ``min_reach..max_reach``
-around the robot's shoulder pivot, above ``floor``) are pulled to the nearest
-reachable point and counted in ``Targets.clamped``.
+The mapped points of a clip are then low-passed forward and backward at ``cutoff_hz`` (4 Hz by default;
+:func:`~retarget.mapping.filter.zero_phase`: no lag, -6 dB at the cutoff), the hand's orientations too, and
+only then clamped: targets outside the :class:`~retarget.mapping.workspace.Workspace` (a shell
+``min_reach..max_reach`` around the robot's shoulder pivot, above ``floor``, out of blocked zones) are pulled
+to the nearest reachable point and counted in ``Targets.clamped``, so every filtered target is reachable.
+The unfiltered points stay in ``Targets.unfiltered``: :meth:`Targets.reference` is what the arm is measured
+against (the tracking error of :mod:`retarget.control.tracking`).
 
 Optionally (``orientation_weight > 0``) the hand's orientation becomes a tool
 orientation: tool x along the hand bone, tool z the body's up in the rest pose.
 
 This module holds the steps' last part and the result: :func:`map_points` (steps 1-5 on points),
-:class:`Targets` (clamped, sampled at any time) and :func:`retarget_targets` (a clip on an arm, with the
-hand's orientation).  The body frames are in :mod:`retarget.mapping.body`, the arm's geometry and
-workspace in :mod:`retarget.mapping.workspace`.
+:class:`Targets` (filtered, clamped, sampled at any time), :func:`retarget_targets` (a clip on an arm, with the
+hand's orientation) and :func:`filter_targets` (unfiltered targets filtered afterwards).  The body frames are
+in :mod:`retarget.mapping.body`, the arm's geometry and workspace in :mod:`retarget.mapping.workspace`.
 
 Units: BVH file units in, metres and radians out.  This module is math only
 (it imports neither drivers, sim nor serial).
@@ -42,6 +46,7 @@ Units: BVH file units in, metres and radians out.  This module is math only
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -53,12 +58,13 @@ from retarget.bvh.motion import ArmChain, Motion
 from retarget.errors import BvhError
 from retarget.mapping.body import clip_body_frames, fixed_frame
 from retarget.mapping.config import Axis, MappingConfig
+from retarget.mapping.filter import DEFAULT_CUTOFF_HZ, zero_phase
 from retarget.mapping.workspace import Workspace, arm_geometry, default_origin
 
 if TYPE_CHECKING:
     from retarget.collision import CollisionModel
 
-__all__ = ["Targets", "map_points", "retarget_targets"]
+__all__ = ["Targets", "filter_targets", "map_points", "retarget_targets"]
 
 
 def map_points(
@@ -99,6 +105,10 @@ class Targets:
     #: ``(n_frames,)`` bool, the frame's target was pushed out of a blocked zone (counted in ``clamped`` too);
     #: all False without a collision model (``workspace.blocked``)
     pushed: np.ndarray | None = None
+    #: ``(n_frames, 3)`` metres, base frame: the mapped points before the zero-phase filter (``raw`` is them
+    #: filtered); None: not filtered (``raw`` is the mapped points)
+    unfiltered: np.ndarray | None = None
+    cutoff_hz: float = 0.0  #: Hz, the zero-phase filter's cutoff applied to ``raw`` (and rotations); 0: none
 
     @classmethod
     def from_raw(
@@ -110,13 +120,26 @@ class Targets:
         config: MappingConfig | None = None,
         rotations: np.ndarray | None = None,
         scale: float = 1.0,
+        cutoff_hz: float = 0.0,
     ) -> Targets:
-        """Targets from tool points ``raw`` ``(n_frames, 3)`` metres (base frame), clamped into ``workspace``."""
+        """Targets from tool points ``raw`` ``(n_frames, 3)`` metres (base frame), clamped into ``workspace``.
+
+        ``cutoff_hz > 0``: first low-pass ``raw`` and ``rotations`` ``(n_frames, 3, 3)`` forward and backward
+        (:func:`~retarget.mapping.filter.zero_phase`; kept in ``unfiltered``), unless the cutoff is at or above
+        the clip's Nyquist frequency ``0.5 / frame_time`` (then nothing is filtered: ``cutoff_hz`` 0).
+        """
         raw = np.asarray(raw, dtype=np.float64)
         if raw.ndim != 2 or raw.shape[1] != 3 or raw.shape[0] < 1:
             raise ValueError(f"Expected raw targets of shape (n_frames, 3), got {raw.shape}")
         if not (np.isfinite(frame_time) and frame_time > 0):
             raise ValueError(f"Expected a frame time > 0 s, got {frame_time}")
+        unfiltered = None
+        if 0 < cutoff_hz < 0.5 / frame_time and len(raw) > 1:
+            unfiltered, raw = raw, zero_phase(raw, 1.0 / frame_time, cutoff_hz)
+            if rotations is not None:  # element-wise, then the nearest rotations again (they turn slowly)
+                rotations = _orthonormalize(zero_phase(rotations, 1.0 / frame_time, cutoff_hz))
+        else:
+            cutoff_hz = 0.0
         positions, clamped = workspace.clamp(raw)
         pushed = np.zeros(clamped.shape, dtype=bool)
         if workspace.blocked is not None:  # which of them were (also) pushed out of a blocked zone
@@ -131,6 +154,8 @@ class Targets:
             config=config or MappingConfig(),
             scale=scale,
             pushed=pushed,
+            unfiltered=unfiltered,
+            cutoff_hz=float(cutoff_hz),
         )
 
     @property
@@ -152,6 +177,18 @@ class Targets:
         Returns ``(positions (n, 3) metres, rotations (n, 3, 3) or None, clamped (n,) bool)``.
         Times outside the clip hold the first/last frame.
         """
+        i0, i1, w = self._interpolation(times)
+        raw = self.raw[i0] * (1.0 - w)[:, None] + self.raw[i1] * w[:, None]
+        positions, clamped = self.workspace.clamp(raw)
+        rotations = None
+        if self.rotations is not None:
+            rotations = _orthonormalize(
+                self.rotations[i0] * (1.0 - w)[:, None, None] + self.rotations[i1] * w[:, None, None]
+            )
+        return positions, rotations, clamped
+
+    def _interpolation(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Frames ``i0``, ``i1`` ``(n,)`` and weights ``w`` ``(n,)`` of clip ``times`` (seconds, held at the ends)."""
         t = np.asarray(times, dtype=np.float64) / self.frame_time
         n = self.n_frames
         if n == 1:
@@ -161,15 +198,16 @@ class Targets:
             t = np.clip(t, 0.0, n - 1)
             i0 = np.minimum(np.floor(t).astype(np.intp), n - 2)
             w = t - i0
-        i1 = np.minimum(i0 + 1, n - 1)
-        raw = self.raw[i0] * (1.0 - w)[:, None] + self.raw[i1] * w[:, None]
-        positions, clamped = self.workspace.clamp(raw)
-        rotations = None
-        if self.rotations is not None:
-            rotations = _orthonormalize(
-                self.rotations[i0] * (1.0 - w)[:, None, None] + self.rotations[i1] * w[:, None, None]
-            )
-        return positions, rotations, clamped
+        return i0, np.minimum(i0 + 1, n - 1), w
+
+    def reference(self, times: np.ndarray) -> np.ndarray:
+        """The *unfiltered* targets ``(n, 3)`` metres at clip ``times`` ``(n,)`` seconds, clamped (and pushed) into
+        the workspace as :meth:`sample` clamps the filtered ones: what the arm's following is measured against.
+        Without a filter, :meth:`sample`'s positions."""
+        points = self.raw if self.unfiltered is None else self.unfiltered
+        i0, i1, w = self._interpolation(times)
+        positions, _ = self.workspace.clamp(points[i0] * (1.0 - w)[:, None] + points[i1] * w[:, None])
+        return np.asarray(positions, dtype=np.float64)
 
     def at(self, time: float) -> tuple[np.ndarray, bool]:
         """The position target ``(3,)`` metres at one clip ``time`` and whether it was clamped (plain floats).
@@ -204,9 +242,10 @@ def retarget_targets(
     the arm file's ``[mapping]`` table.
 
     Returns :class:`Targets`: ``positions`` ``(n_frames, 3)`` float64 metres in the arm's base frame,
-    inside the :class:`~retarget.mapping.workspace.Workspace`; ``raw`` the same before the workspace clamp; ``clamped``
-    ``(n_frames,)`` bool; ``rotations`` ``(n_frames, 3, 3)`` tool orientations in the base frame when
-    ``config.orientation_weight > 0``, else None; ``frame_time`` seconds; ``scale`` metres per file unit.
+    inside the :class:`~retarget.mapping.workspace.Workspace`; ``raw`` the same before the workspace clamp (after
+    the zero-phase filter at ``config.cutoff_hz``; ``unfiltered`` before it); ``clamped`` ``(n_frames,)`` bool;
+    ``rotations`` ``(n_frames, 3, 3)`` tool orientations in the base frame when ``config.orientation_weight > 0``
+    (filtered too), else None; ``frame_time`` seconds; ``scale`` metres per file unit.
     ``collision``: a collision model whose blocked zones (below the table, keep-outs, the base) the targets are
     pushed out of as well (``pushed``, counted in ``clamped`` too).
 
@@ -259,6 +298,27 @@ def retarget_targets(
         config=config,
         rotations=rotations,
         scale=scale,
+        cutoff_hz=config.cutoff_hz,
+    )
+
+
+def filter_targets(targets: Targets, cutoff_hz: float = DEFAULT_CUTOFF_HZ) -> Targets:
+    """Unfiltered ``targets`` (``cutoff_hz`` 0) with their mapped points (``raw``) and rotations low-passed by
+    :func:`zero_phase` at the clip's frame rate, then clamped into the workspace again, as
+    :func:`~retarget.mapping.retarget_targets` does with ``MappingConfig.cutoff_hz``; ``cutoff_hz <= 0``:
+    ``targets`` itself.  ``ValueError`` for targets that were filtered already."""
+    if cutoff_hz <= 0:
+        return targets
+    if targets.unfiltered is not None:
+        raise ValueError(f"Expected unfiltered targets, got targets filtered at {targets.cutoff_hz:g} Hz")
+    return Targets.from_raw(
+        targets.raw,
+        frame_time=targets.frame_time,
+        workspace=targets.workspace,
+        config=dataclasses.replace(targets.config, cutoff_hz=cutoff_hz),
+        rotations=targets.rotations,
+        scale=targets.scale,
+        cutoff_hz=cutoff_hz,
     )
 
 

@@ -17,6 +17,13 @@ keys) into the per-tick goal of the control loop (a :class:`~retarget.control.so
   follower returns ``HOLD`` (``None``): the loop **holds** the commanded pose and runs no IK at all;
 - **stale**: while the source is open and no target came for ``timeout`` seconds, the queue is dropped
   and the arm holds until a new target comes;
+- **smoothing**: with a :class:`~retarget.mapping.filter.OneEuro` filter (``smoothing``; the CLI's default for
+  streams), each target is smoothed as it arrives, causally, at its receive time, before it queues (its
+  position as it came in stays in ``Target.raw``); the filter starts afresh after a stale stream, and takes
+  targets that arrive less than a tick apart (a burst, a file on stdin) one tick apart.  When the stream ends
+  (the source closes) its last target is queued once more as it came in, so the arm ends where the stream did.
+  Its lag at steady speed is in :mod:`retarget.mapping.filter` (15 ms at 0.2 m/s for a 100 Hz stream, with the
+  defaults);
 - **superseded**: with ``max_lag``, a target received more than ``max_lag`` seconds before the newest
   one is skipped (counted), so a live stream faster than the arm cannot build an ever-growing lag.
 
@@ -30,6 +37,7 @@ source is finished and the servos settled, with a :class:`PoseSolver` for IK.
 from __future__ import annotations
 
 import collections
+import dataclasses
 import enum
 import logging
 import math
@@ -47,9 +55,11 @@ from retarget.control.loop import LoopConfig, TickRecord, run_ticks
 from retarget.control.source import HOLD, TargetSource, TickSolver, TickTarget
 from retarget.control.stats import TickStats
 from retarget.control.summary import RunSummary
+from retarget.control.tracking import Following, Trajectory, following
 from retarget.errors import BusError, ConfigError, require_positive
 from retarget.ik.ccd import CCDSolver, IKResult
 from retarget.mapping.config import MappingConfig
+from retarget.mapping.filter import OneEuro
 from retarget.mapping.workspace import ik_weights
 from retarget.teleop.gate import Target, step_toward
 from retarget.teleop.sources import Source
@@ -113,7 +123,8 @@ class Follower(TargetSource):
     ``stall_distance`` (m); ``orientation_tolerance`` (rad) for targets with a rotation, which count as reached
     only when the tool frame is within it too.  ``lockstep``: for a virtual clock (``--fast``), wait up to
     ``idle_wait`` *real* seconds for input whenever there is nothing to do, so virtual time does not race ahead
-    of a reader thread.  ``queue_length``: targets kept waiting.  A bad value raises ``ConfigError`` whose
+    of a reader thread.  ``queue_length``: targets kept waiting.  ``smoothing``: a One-Euro filter each target
+    passes as it arrives (None: none).  A bad value raises ``ConfigError`` whose
     ``key`` is the parameter's name.  The loop calls :meth:`start` with the start pose before the first tick,
     then :meth:`target_at` and :meth:`observe` each tick; the outcomes are in :attr:`visits`.
 
@@ -152,8 +163,10 @@ class Follower(TargetSource):
         lockstep: bool = False,
         idle_wait: float = 0.1,
         queue_length: int = 4096,
+        smoothing: OneEuro | None = None,
     ):
         self.arm = arm
+        self.smoothing = smoothing
         self.source = source
         self.clock = clock
         self.rate = require_positive(rate, "rate")
@@ -183,6 +196,11 @@ class Follower(TargetSource):
         self._best = math.inf
         self._since_best = 0  # ticks observed at the goal since the cost last improved (not slots: see observe)
         self._last_tick = -1
+        #: ``(3,)`` the target as it came in (before the filter) that the arm is steered toward or holds at; None
+        #: before the first: what the tracking error is measured against
+        self.reference: npt.NDArray[np.float64] | None = None
+        self._smooth_time = -math.inf  # s, the time the last target was filtered at
+        self._last_smoothed: Target | None = None  # the last target filtered, until the stream ends
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -227,6 +245,12 @@ class Follower(TargetSource):
 
     def _pull(self) -> None:
         new = self.source.drain()
+        if self.smoothing is not None:
+            new = [self._smoothed(target) for target in new]
+            if self._last_smoothed is not None and self.source.closed and not self.source.queued:
+                last, self._last_smoothed = self._last_smoothed, None  # the stream ended: end where it did
+                if last.raw is not None and not np.array_equal(last.position, last.raw):
+                    new.append(dataclasses.replace(last, position=last.raw))
         if not new:
             return
         self._queue.extend(new)
@@ -243,6 +267,17 @@ class Follower(TargetSource):
                 self.setpoint = self._commanded()[0].copy()
                 self.skipped += 1
 
+    def _smoothed(self, target: Target) -> Target:
+        """``target`` with its position through the One-Euro filter at its receive time (``raw``: as it came).
+
+        Targets that arrive less than a tick apart (a burst, a file on stdin) are taken one tick apart: a filter
+        needs their spacing, and a tick is the finest the arm can follow."""
+        assert self.smoothing is not None
+        self._smooth_time = max(target.received, self._smooth_time + 1.0 / self.rate)
+        position = self.smoothing(target.position, self._smooth_time)
+        self._last_smoothed = smoothed = dataclasses.replace(target, position=position, raw=target.position)
+        return smoothed
+
     def target_at(self, tick: int, t: float) -> TickTarget | None:
         """The goal of tick ``tick``: the setpoint as a :class:`~retarget.control.source.TickTarget` (``(3,)``
         metres, the target's rotation ``(3, 3)`` or None), or ``HOLD`` (None) with nothing to steer toward."""
@@ -258,6 +293,9 @@ class Follower(TargetSource):
                     if self.goal is not None:
                         self._leave(False, tick)
                 self._queue.clear()
+                if self.smoothing is not None:  # a resumed stream starts afresh, not from where it went quiet
+                    self.smoothing.reset()
+                    self._smooth_time = -math.inf
                 self.phase = Phase.STALE
                 return HOLD
         if self.goal is None:
@@ -269,6 +307,7 @@ class Follower(TargetSource):
                     self.phase = Phase.HOLDING if self.visits else Phase.WAITING
                 return HOLD
             self.goal = self._queue.popleft()
+            self.reference = self.goal.position if self.goal.raw is None else self.goal.raw
             self.setpoint = self._commanded()[0].copy()  # restart the walk where the arm is commanded to be
             self._best, self._since_best = math.inf, 0
         self.phase = Phase.MOVING
@@ -521,6 +560,7 @@ def run_teleop(
     (True, True)
     """
     tolerance = require_tolerance(tolerance)
+    trajectory = Trajectory(reference=lambda _record: follower.reference)  # for the tracking error
     run = _Run(follower, settle_ticks=max(1, int(round(require_positive(settle_time, "settle_time") * config.rate))))
     try:
         stats = run_ticks(
@@ -531,20 +571,24 @@ def run_teleop(
             clock=clock,
             bus=bus,
             q_start=q_start,
-            on_tick=on_tick,
+            on_tick=trajectory.chain(on_tick),
             on_progress=on_progress,
             stop=stop,
         )
     except BusError as exc:  # the summary of the ticks that ran goes with the error
         if isinstance(exc.stats, TickStats):
             exc.summary = exc.stats.summary(
-                arm=arm.name, clip=name, frames=follower.received, duration_s=exc.stats.run_time
-            )
+                arm=arm.name, clip=name, frames=follower.received, duration_s=exc.stats.run_time,
+                following=following(arm, trajectory, rate=config.rate),
+            )  # fmt: skip
         raise
-    return _result(arm, follower, stats, tolerance=tolerance, name=name)
+    measured = following(arm, trajectory, rate=config.rate)
+    return _result(arm, follower, stats, tolerance=tolerance, name=name, measured=measured)
 
 
-def _result(arm: Arm, follower: Follower, stats: TickStats, *, tolerance: float, name: str) -> TeleopResult:
+def _result(
+    arm: Arm, follower: Follower, stats: TickStats, *, tolerance: float, name: str, measured: Following | None = None
+) -> TeleopResult:
     """The :class:`TeleopResult` of a run that ended with ``stats``."""
     q_final = stats.q_present if stats.q_present is not None else stats.q_cmd
     if q_final is None:
@@ -555,7 +599,9 @@ def _result(arm: Arm, follower: Follower, stats: TickStats, *, tolerance: float,
     orientation_error = math.nan if rotation is None else rotation_angle(T[:3, :3], rotation)
     target = follower.last_target
     residual = None if target is None else float(np.linalg.norm(reached - target))
-    summary = stats.summary(arm=arm.name, clip=name, frames=follower.received, duration_s=stats.run_time)
+    summary = stats.summary(
+        arm=arm.name, clip=name, frames=follower.received, duration_s=stats.run_time, following=measured
+    )
     return TeleopResult(
         summary=summary,
         stats=stats,

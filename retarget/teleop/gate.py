@@ -283,6 +283,9 @@ class Target:
     #: ``(3,)`` where the arm steers instead, when ``position`` is in a blocked zone (the nearest safe point; a
     #: one-shot target only: a stream's blocked targets are rejected); None: ``position`` itself
     aim: npt.NDArray[np.float64] | None = None
+    #: ``(3,)`` the position as it came in, when ``position`` is it smoothed by the follower's One-Euro filter
+    #: (:class:`~retarget.mapping.filter.OneEuro`); None: not filtered
+    raw: npt.NDArray[np.float64] | None = None
 
 
 class RejectCounter:

@@ -460,7 +460,8 @@ def test_lead_in_on_the_bus_moves_to_the_first_pose_within_its_speed_then_plays_
 
 
 def test_no_lead_in_at_speed_0_goes_to_the_first_pose_at_full_speed(arm, sim_bus):
-    """Today's start, kept with lead_in_speed=0: the first ticks move at each joint's max velocity."""
+    """Today's start, kept with lead_in_speed=0: the first ticks speed up from rest at each joint's acceleration
+    limit, to its max velocity."""
     from drivers import DynamixelBus
 
     simbus, url, clock = sim_bus()
@@ -472,9 +473,13 @@ def test_no_lead_in_at_speed_0_goes_to_the_first_pose_at_full_speed(arm, sim_bus
     summary = run_on_bus(loop, DynamixelBus(arm, url, clock=clock, shutdown="hold"))
     assert summary.lead_in_ticks == 0 and summary.lead_in_s == 0.0 and summary.ticks == len(records) == 101
     assert records[0].tick == 0 and not any(r.lead_in for r in records)
-    steps = np.abs(np.diff(np.array([q0, *(r.q_cmd for r in records)]), axis=0))
-    assert np.max(steps / arm.max_velocity) * 100 == pytest.approx(1.0)  # full speed
-    assert records[0].velocity_limited and summary.velocity_limited_ticks > 10
+    signed = np.diff(np.array([q0, *(r.q_cmd for r in records)]), axis=0)
+    steps = np.abs(signed)
+    accel = arm.max_acceleration / 100.0**2  # rad per slot^2
+    np.testing.assert_allclose(steps[0].max(), accel.max(), rtol=1e-9)  # from rest: one slot's acceleration
+    assert np.all(np.abs(np.diff(signed, axis=0)) <= accel * (1 + 1e-9))  # never more
+    assert np.max(steps / arm.max_velocity) * 100 == pytest.approx(1.0)  # up to full speed
+    assert not records[0].velocity_limited and summary.velocity_limited_ticks > 10
     assert "lead-in" not in summary.format()
 
 
@@ -610,7 +615,13 @@ def test_a_stalled_bus_call_does_not_let_the_goals_jump(arm, lead_in_speed, at):
     # the lead-in's ticks: its own speed (0.5 rad/s, below the scaled 0.63 rad/s), after the stall too
     limits = np.array([np.full(6, lead_in_speed / rate) if r.lead_in else limit for r, _ in records[1:]])
     assert np.all(np.abs(np.diff(q, axis=0)) <= limits * (1 + 1e-9) + 1e-12)
-    assert np.any(np.abs(q[k + 1] - q[k]) > 0.99 * limits[k])  # it moved on at the limit right after the stall
+    # and the acceleration limit: a step differs from the last by at most one slot's acceleration per slot passed;
+    # the missed slots braked the arm to rest, so right after the stall it moved on by exactly one slot's worth
+    accel = arm.max_acceleration / rate**2  # rad per slot^2
+    steps = np.diff(q, axis=0)
+    assert np.all(np.abs(np.diff(steps, axis=0)) <= accel * gaps[1:, None] * (1 + 1e-9) + 1e-12)
+    after = np.abs(q[k + 1] - q[k])
+    assert np.all(after <= accel + 1e-12) and np.any(np.isclose(after, accel, rtol=1e-9, atol=0))
     if lead_in_speed:  # and still arrived: the arm caught up with the plan as it slowed down
         np.testing.assert_allclose(records[summary.lead_in_ticks - 1][0].q_cmd, loop.initial_pose(), atol=1e-12)
     present = np.array([r.q_present for r, _ in records])

@@ -50,7 +50,9 @@ def test_columns_name_the_joints_and_units(arm):
     assert cols[-4] == "lead_in"  # the flag of the lead-in's rows
     assert cols[-3] == "stale"  # the servos whose read-back missed (added after lead_in)
     assert cols[-2:] == ["blocked", "min_clearance_mm"]  # the collision check, last
-    assert len(cols) == len(set(cols)) == 6 + 2 * arm.n_joints + 14
+    i = cols.index("ik_error_mm")  # the tracking error and the filter's deviation beside the IK error, apart
+    assert cols[i : i + 3] == ["ik_error_mm", "tracking_mm", "filter_mm"]
+    assert len(cols) == len(set(cols)) == 6 + 2 * arm.n_joints + 16
 
 
 @pytest.mark.parametrize("present", [True, False], ids=["bus", "dry-run"])
@@ -76,6 +78,7 @@ def test_row_values(arm, present):
     assert (row["clamped"], row["velocity_limited"], row["overrun"], row["bus_retries"]) == ("1", "0", "1", "2")
     assert row["lead_in"] == "0" and row["stale"] == "0"
     assert row["blocked"] == "0" and row["min_clearance_mm"] == ""  # no collision model: no clearance
+    assert row["tracking_mm"] == row["filter_mm"] == ""  # no tracking measure given
     assert not out.closed  # a stream given by the caller stays open
 
 
