@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from retarget.ik.bound import HORIZON, shared_bound
+from retarget.ik.dls import Chain
 from retarget.ik.result import IKResult
 
 if TYPE_CHECKING:
@@ -45,24 +46,14 @@ if TYPE_CHECKING:
     from retarget.collision import CollisionModel
 
 
-class Solver(Protocol):
-    """What the guard uses of :class:`~retarget.ik.ccd.CCDSolver` (its bounds, buffers and free solve); a
-    protocol, so this module does not import the solver's (which imports this one)."""
+class Solver(Chain, Protocol):
+    """What the guard uses of :class:`~retarget.ik.ccd.CCDSolver`: the forward pass and bounds the DLS steps use
+    (:class:`~retarget.ik.dls.Chain`), plus its free solve; a protocol, so this module does not import the
+    solver's (which imports this one)."""
 
     arm: Arm
-    n: int
     weights: tuple[float, ...]
-    _lo: tuple[float, ...]
-    _hi: tuple[float, ...]
     _lever2: float
-    _px: list[float]
-    _py: list[float]
-    _pz: list[float]
-    _ax: list[float]
-    _ay: list[float]
-    _az: list[float]
-
-    def _fk(self, q: list[float]) -> tuple[float, ...]: ...
 
     def tool_point(self, q: Sequence[float] | np.ndarray) -> tuple[float, float, float]: ...
 
