@@ -8,10 +8,11 @@ with its own seeded stream); hands, the control socket, mounts and ``--ids`` bel
 from __future__ import annotations
 
 import argparse
+import contextlib
 import signal
 import sys
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 from retarget.arm.model import Arm
 from retarget.errors import ConfigError
@@ -19,7 +20,7 @@ from retarget.rig import load_rig
 from sim.bus import SimBus
 from sim.server import PtyServer, SimServer, TcpServer
 
-__all__ = ["serve_rig"]
+__all__ = ["serve_rig", "stop_on_signals"]
 
 _ONE_ARM_OPTIONS = (("ids", "--ids"), ("arm", "--arm"), ("model", "--model"), ("base", "--base"), ("tip", "--tip"))
 _ONE_ARM_LISTS = (("mount", "--mount"), ("reverse", "--reverse"), ("hand", "--hand"))
@@ -64,14 +65,20 @@ def serve_rig(args: argparse.Namespace, make_bus: Callable[[Arm], SimBus], tcp: 
     pty, or on TCP ``(host, first port)`` (port 0: any free ones); see the module docstring."""
     servers = _servers(args, make_bus, tcp)
     stop = threading.Event()
-
-    def on_signal(signum: int, frame: object) -> None:
-        stop.set()
-
-    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     threads = [
         threading.Thread(target=s.serve_forever, args=(stop,), name=f"sim-{n}", daemon=True) for n, s, _ in servers
     ]
+    with stop_on_signals(stop):
+        _serve(args, servers, threads, stop)
+    print("retarget sim: stopped", file=sys.stderr)
+    return 0
+
+
+def _serve(
+    args: argparse.Namespace, servers: list[tuple[str, SimServer, str]], threads: list[threading.Thread],
+    stop: threading.Event,
+) -> None:  # fmt: skip
+    """Run the servers' threads until ``stop`` is set or one of them ends; then stop and close them all."""
     try:
         for name, _, where in servers:
             print(f"{name}={where}", flush=True)
@@ -89,7 +96,19 @@ def serve_rig(args: argparse.Namespace, make_bus: Callable[[Arm], SimBus], tcp: 
             thread.join(timeout=2.0)
         for _, server, _ in servers:
             server.close()
+
+
+@contextlib.contextmanager
+def stop_on_signals(stop: threading.Event) -> Iterator[None]:
+    """While inside, SIGINT and SIGTERM set ``stop`` (a server's clean end); the previous handlers come back on the
+    way out.  Shared by ``retarget sim`` and ``retarget sim --rig``."""
+
+    def on_signal(signum: int, frame: object) -> None:
+        stop.set()
+
+    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-    print("retarget sim: stopped", file=sys.stderr)
-    return 0

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import signal
 import sys
 import threading
 from typing import Any
@@ -12,7 +11,7 @@ from typing import Any
 from drivers.control_table import parse_ids
 from retarget.arm.model import SERVO_BAUDS, SERVO_MODELS, Arm
 from retarget.cli._arm import add_link_arguments, load_arm_option
-from retarget.cli._sim_rig import refuse_one_arm_options, serve_rig
+from retarget.cli._sim_rig import refuse_one_arm_options, serve_rig, stop_on_signals
 from retarget.control.clock import MonotonicClock
 from retarget.errors import ConfigError
 from sim.bus import SimBus
@@ -321,29 +320,23 @@ def run(args: argparse.Namespace) -> int:
         server.close()
         raise
     stop = threading.Event()
-
-    def on_signal(signum: int, frame: object) -> None:
-        stop.set()
-
-    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        print(where, flush=True)
-        if control is not None:
-            print(control.address, flush=True)
-        wire = "wire time at the baud rate" if bus.faults.wire else "no wire time (--no-wire)"
-        print(
-            f"retarget sim: serving servos {', '.join(map(str, bus.ids))} at {bus.baud} baud on {where} ({wire})"
-            + (f"; control socket on {control.address}" if control is not None else "")
-            + "; Ctrl-C to stop",
-            file=sys.stderr,
-            flush=True,
-        )
-        server.serve_forever(stop)
-    finally:
-        server.close()
-        if control is not None:
-            control.close()
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+    with stop_on_signals(stop):
+        try:
+            print(where, flush=True)
+            if control is not None:
+                print(control.address, flush=True)
+            wire = "wire time at the baud rate" if bus.faults.wire else "no wire time (--no-wire)"
+            print(
+                f"retarget sim: serving servos {', '.join(map(str, bus.ids))} at {bus.baud} baud on {where} ({wire})"
+                + (f"; control socket on {control.address}" if control is not None else "")
+                + "; Ctrl-C to stop",
+                file=sys.stderr,
+                flush=True,
+            )
+            server.serve_forever(stop)
+        finally:
+            server.close()
+            if control is not None:
+                control.close()
     print("retarget sim: stopped", file=sys.stderr)
     return 0
