@@ -22,6 +22,7 @@ __all__ = [
     "BodyFrames",
     "clip_body_frames",
     "fixed_frame",
+    "mapping_frames",
     "hold_good_frames",
 ]
 
@@ -39,6 +40,22 @@ def fixed_frame(forward: Axis, up: Axis) -> np.ndarray:
             f"Expected a forward axis perpendicular to up ({up.value})", key="mapping.forward", value=forward.value
         )
     return np.stack([f, np.cross(u, f), u], axis=-1)
+
+
+def mapping_frames(motion: Motion, chain: ArmChain, forward: Axis, up: Axis) -> np.ndarray:
+    """The body frames a mapping uses: with ``forward`` AUTO, each frame's own (:func:`clip_body_frames`,
+    ``(n_frames, 3, 3)``); else the one fixed frame of that BVH axis (:func:`fixed_frame`, ``(3, 3)``).
+
+    >>> from retarget.bvh.parse import DEMO_CLIP, load_bvh
+    >>> motion = load_bvh(DEMO_CLIP)
+    >>> mapping_frames(motion, motion.arm_points("right"), Axis.AUTO, Axis.PY).shape
+    (630, 3, 3)
+    >>> mapping_frames(motion, motion.arm_points("right"), Axis.PZ, Axis.PY).shape
+    (3, 3)
+    """
+    if forward is Axis.AUTO:
+        return clip_body_frames(motion, chain, up=up).frames
+    return fixed_frame(forward, up)
 
 
 def hold_good_frames(values: np.ndarray, good: np.ndarray) -> np.ndarray:

@@ -56,8 +56,8 @@ import numpy as np
 from retarget.arm.model import Arm
 from retarget.bvh.motion import ArmChain, Motion
 from retarget.errors import BvhError
-from retarget.mapping.body import clip_body_frames, fixed_frame
-from retarget.mapping.config import Axis, MappingConfig
+from retarget.mapping.body import mapping_frames
+from retarget.mapping.config import MappingConfig
 from retarget.mapping.filter import DEFAULT_CUTOFF_HZ, zero_phase
 from retarget.mapping.workspace import Workspace, arm_geometry, default_origin
 
@@ -278,10 +278,7 @@ def retarget_targets(
     shoulder, wrist = pts[:, 0], pts[:, 2]
     human = _human_arm_length(motion, chain, pts, side)
     hand = _hand_alignment(motion, chain, config) if config.orientation_weight > 0 else None
-    if config.forward is Axis.AUTO:
-        frames = clip_body_frames(motion, chain, up=config.up).frames
-    else:
-        frames = fixed_frame(config.forward, config.up)
+    frames = mapping_frames(motion, chain, config.forward, config.up)
 
     geometry = arm_geometry(arm)
     scale = config.arm_scale * geometry.reach / human

@@ -27,8 +27,8 @@ import numpy.typing as npt
 
 from retarget.bvh.motion import Motion
 from retarget.errors import BvhError, ConfigError
-from retarget.mapping.body import clip_body_frames, fixed_frame
-from retarget.mapping.config import Axis, MappingConfig
+from retarget.mapping.body import mapping_frames
+from retarget.mapping.config import MappingConfig
 from retarget.mapping.targets import Targets, map_points
 from retarget.mapping.workspace import Workspace, arm_geometry, default_origin
 from retarget.rig.spec import Rig
@@ -88,10 +88,7 @@ def rig_targets(
     points = {side: np.asarray(c.points, dtype=np.float64) for side, c in chains.items()}  # (n, 3, 3) each
     middle = 0.5 * (points["left"][:, 0] + points["right"][:, 0])
     human = _human_arm_length(motion, points)
-    if config.forward is Axis.AUTO:
-        frames = clip_body_frames(motion, chains[rig.arms[0].side.value], up=config.up).frames
-    else:
-        frames = fixed_frame(config.forward, config.up)
+    frames = mapping_frames(motion, chains[rig.arms[0].side.value], config.forward, config.up)
     geometries = [arm_geometry(a.arm) for a in rig.arms]
     scale = config.arm_scale * min(g.reach for g in geometries) / human
     origins = [a.placement.to_world(default_origin(config, g)) for a, g in zip(rig.arms, geometries, strict=True)]

@@ -25,7 +25,8 @@ from retarget.arm.model import Arm
 from retarget.bvh.motion import ArmChain, Motion
 from retarget.collision import CollisionModel
 from retarget.errors import BvhError
-from retarget.mapping import Axis, Targets, Workspace, arm_geometry, clip_body_frames, default_origin, fixed_frame
+from retarget.mapping import Targets, Workspace, arm_geometry, default_origin
+from retarget.mapping.body import mapping_frames
 
 __all__ = [
     "Layout",
@@ -158,10 +159,7 @@ class Scene:
         """The scene of ``motion`` mapped onto ``arm`` as ``targets`` (from ``retarget_targets``)."""
         config = targets.config
         chain = motion.arm_points(config.side.value)
-        if config.forward is Axis.AUTO:
-            body = clip_body_frames(motion, chain, up=config.up).frames
-        else:
-            body = np.broadcast_to(fixed_frame(config.forward, config.up), (motion.n_frames, 3, 3))
+        body = np.broadcast_to(mapping_frames(motion, chain, config.forward, config.up), (motion.n_frames, 3, 3))
         torso = _torso_origin(motion, chain)
         geometry = arm_geometry(arm)
         basis = geometry.basis(config.robot_forward)
