@@ -1336,3 +1336,44 @@ def pinching_hand_bvh(closed: np.ndarray, *, thumb: bool = True, frame_time: flo
     else:
         values = {(f"{first}1", "Zrotation"): 170.0 * c, ("LeftHandIndex1", "Zrotation"): 170.0 * c}
     return bvh_text(root, pose(root, len(c), values), frame_time=frame_time)
+
+
+# ------------------------------------------------------------------ rigs
+def sampled_min_clearance(rig, poses, spacing=0.004):
+    """The arm-arm clearance by brute force: points every ``spacing`` m along each capsule's segment (a box's
+    bounding sphere is one point), each arm's shapes placed by its own FK chain product written here."""
+    clouds = []
+    for rig_arm in rig.arms:
+        arm, q = rig_arm.arm, np.asarray(poses[rig_arm.name], dtype=np.float64)
+        frames = [np.eye(4)]
+        for joint, angle in zip(arm.joints, q, strict=True):
+            x, y, z = joint.origin_xyz
+            r, p, w = joint.origin_rpy
+            cr, sr, cp, sp, cw, sw = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(w), np.sin(w)
+            origin = np.eye(4)
+            origin[:3, :3] = [[cw * cp, cw * sp * sr - sw * cr, cw * sp * cr + sw * sr],
+                              [sw * cp, sw * sp * sr + cw * cr, sw * sp * cr - cw * sr],
+                              [-sp, cp * sr, cp * cr]]  # fmt: skip
+            origin[:3, 3] = (x, y, z)
+            k = np.asarray(joint.axis, dtype=np.float64) / np.linalg.norm(joint.axis)
+            K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+            spin = np.eye(4)
+            spin[:3, :3] = np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+            frames.append(frames[-1] @ origin @ spin)
+        place = rig_arm.placement.matrix
+        points, radii = [], []
+        for link in arm.geometry.links:
+            shape, T = link.shape, place @ frames[link.frame]
+            if hasattr(shape, "radius"):
+                a, b = np.asarray(shape.a), np.asarray(shape.b)
+                n = max(2, int(np.ceil(np.linalg.norm(b - a) / spacing)) + 1)
+                local = a + np.linspace(0, 1, n)[:, None] * (b - a)
+                radius = shape.radius
+            else:
+                local, radius = np.asarray(shape.center)[None], float(np.linalg.norm(shape.half_size))
+            points.append(local @ T[:3, :3].T + T[:3, 3])
+            radii.append(np.full(len(local), radius))
+        clouds.append((np.concatenate(points), np.concatenate(radii)))
+    (pa, ra), (pb, rb) = clouds
+    gaps = np.linalg.norm(pa[:, None] - pb[None], axis=-1) - ra[:, None] - rb[None]
+    return float(gaps.min())

@@ -44,14 +44,13 @@ import logging
 import math
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 import numpy.typing as npt
 
-from retarget.arm.model import Arm
 from retarget.control.bus import Bus, BusStatus
 from retarget.control.clock import Clock
 from retarget.control.limits import StepLimiter
@@ -65,9 +64,52 @@ from retarget.errors import BusError, ConfigError
 if TYPE_CHECKING:
     from retarget.collision import CollisionModel
 
-__all__ = ["JointGoal", "LoopConfig", "TargetSource", "TickRecord", "TickStats", "TickTarget", "run_ticks"]
+__all__ = [
+    "Checker",
+    "JointGoal",
+    "LoopConfig",
+    "Plant",
+    "TargetSource",
+    "TickRecord",
+    "TickStats",
+    "TickTarget",
+    "run_ticks",
+]
 
 log = logging.getLogger(__name__)
+
+
+class Plant(Protocol):
+    """What the loop needs of the joints it steps: an :class:`~retarget.arm.model.Arm`, or several arms as one
+    vector (``retarget.rig.RigPlant``).  Arrays ``(n_joints,)`` float64: rad, rad/s, rad/s^2."""
+
+    @property
+    def n_joints(self) -> int: ...
+
+    @property
+    def lower(self) -> npt.NDArray[np.float64]: ...
+
+    @property
+    def upper(self) -> npt.NDArray[np.float64]: ...
+
+    @property
+    def max_velocity(self) -> npt.NDArray[np.float64]: ...
+
+    @property
+    def max_acceleration(self) -> npt.NDArray[np.float64]: ...
+
+    @property
+    def rest(self) -> npt.NDArray[np.float64]: ...
+
+
+class Checker(Protocol):
+    """The last check of each goal before it is written (:class:`~retarget.control.safety.GoalCheck` is one):
+    whether the move ``q_from`` -> ``q_to`` (rad) keeps the clearance, and the least clearance (metres) of the
+    last move it allowed."""
+
+    clearance: float
+
+    def allows(self, q_from: Sequence[float], q_to: Sequence[float]) -> bool: ...
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -185,7 +227,7 @@ class TickRecord:
 
 
 def run_ticks(
-    arm: Arm,
+    arm: Plant,
     source: TargetSource,
     solver: TickSolver,
     *,
@@ -198,32 +240,36 @@ def run_ticks(
     progress_time: Callable[[], float] | None = None,
     stop: threading.Event | None = None,
     pipeline: bool = False,
+    goal_check: Callable[[npt.NDArray[np.float64]], Checker] | None = None,
 ) -> TickStats:
     """Run ``source``'s goals on ``arm`` at ``config.rate`` ticks per second; see the module docstring.
 
-    Runs slots ``first, first + 1, ...`` (``first = source.start(q_start)``, <= 0; slots < 0 are a lead-in
-    before the run's clock starts) until ``source.finished(k)``, ``config.max_ticks`` ticks of slots >= 0,
-    ``stop`` or Ctrl-C.  ``solver`` solves IK for the source's points.  ``bus``: a connected bus (None: a dry
-    run).  The start pose ``(n_joints,)`` rad is the bus's present positions, else ``q_start``, else the arm's
-    rest pose, clamped to the limits.  ``on_tick(record)`` gets every tick's :class:`TickRecord`;
-    ``on_progress(record)`` the first, then one whenever ``progress_time()`` (seconds; default the tick's own
-    ``time.perf_counter`` reading) has passed the last report by ``config.progress_every``.  ``pipeline`` (on a
-    bus): collect each tick's read-back during the next tick (see :mod:`~retarget.control.readback`); a tick's
-    record then comes once its read-back is in.  Not for a source that ``observes`` (ValueError).  Returns
-    the run's :class:`~retarget.control.stats.TickStats`.  ``BusError`` propagates (the caller closes the bus).
+        Runs slots ``first, first + 1, ...`` (``first = source.start(q_start)``, <= 0; slots < 0 are a lead-in
+        before the run's clock starts) until ``source.finished(k)``, ``config.max_ticks`` ticks of slots >= 0,
+        ``stop`` or Ctrl-C.  ``solver`` solves IK for the source's points.  ``bus``: a connected bus (None: a dry
+        run).  The start pose ``(n_joints,)`` rad is the bus's present positions, else ``q_start``, else the arm's
+        rest pose, clamped to the limits.  ``on_tick(record)`` gets every tick's :class:`TickRecord`;
+        ``on_progress(record)`` the first, then one whenever ``progress_time()`` (seconds; default the tick's own
+        ``time.perf_counter`` reading) has passed the last report by ``config.progress_every``.  ``pipeline`` (on a
+        bus): collect each tick's read-back during the next tick (see :mod:`~retarget.control.readback`); a tick's
+        record then comes once its read-back is in.  Not for a source that ``observes`` (ValueError).  ``arm``: an
+    :class:`~retarget.arm.model.Arm`, or any :class:`Plant` (a rig's arms as one vector).  ``goal_check(q_start)``:
+    the :class:`Checker` of every goal, instead of a :class:`~retarget.control.safety.GoalCheck` of
+    ``config.collision`` (a rig checks its arms against each other too).  Returns
+        the run's :class:`~retarget.control.stats.TickStats`.  ``BusError`` propagates (the caller closes the bus).
 
-    >>> import retarget
-    >>> from retarget.control.clock import VirtualClock
-    >>> from retarget.ik import CCDSolver
-    >>> arm = retarget.load_arm("wx250s")
-    >>> class Point(TargetSource):
-    ...     def target_at(self, tick: int, t: float) -> TickTarget:
-    ...         return TickTarget(np.array([0.3, 0.0, 0.2]))
-    ...     def finished(self, tick: int) -> bool:
-    ...         return tick >= 100  # 1 s at 100 Hz
-    >>> stats = run_ticks(arm, Point(), CCDSolver(arm), config=LoopConfig(), clock=VirtualClock())
-    >>> stats.ticks, stats.run_time, stats.converged[-1], stats.velocity_limited[-1]
-    (100, 1.0, True, False)
+        >>> import retarget
+        >>> from retarget.control.clock import VirtualClock
+        >>> from retarget.ik import CCDSolver
+        >>> arm = retarget.load_arm("wx250s")
+        >>> class Point(TargetSource):
+        ...     def target_at(self, tick: int, t: float) -> TickTarget:
+        ...         return TickTarget(np.array([0.3, 0.0, 0.2]))
+        ...     def finished(self, tick: int) -> bool:
+        ...         return tick >= 100  # 1 s at 100 Hz
+        >>> stats = run_ticks(arm, Point(), CCDSolver(arm), config=LoopConfig(), clock=VirtualClock())
+        >>> stats.ticks, stats.run_time, stats.converged[-1], stats.velocity_limited[-1]
+        (100, 1.0, True, False)
     """
     source = as_target_source(source)
     pipeline = pipeline and bus is not None
@@ -235,11 +281,16 @@ def run_ticks(
     if first > 0:
         raise ValueError(f"Expected the source's first slot <= 0, got {first}")
     recorder = StatsRecorder(rate=config.rate, dry_run=bus is None, first=first, wall0=time.perf_counter())
-    recorder.stats.collision_checked = config.collision is not None
+    recorder.stats.collision_checked = config.collision is not None or goal_check is not None
     retries = status.retries if status is not None else 0
     stale = status.stale_reads if status is not None else 0
     reporter = _Reporter(source, recorder, bus, config, on_tick, on_progress, progress_time, retries, stale)
-    run = _Run(arm, source, solver, config, q_cmd, first, recorder)
+    check: Checker | None = None
+    if goal_check is not None:
+        check = goal_check(q_cmd)
+    elif config.collision is not None:
+        check = GoalCheck(config.collision, q_cmd)
+    run = _Run(arm, source, solver, config, q_cmd, first, recorder, check)
     read_back = read_back_for(bus, reporter, pipeline=pipeline)
     schedule = Schedule(clock, rate=config.rate, first=first)  # slot `first` starts now
     try:
@@ -266,7 +317,7 @@ def _add_bus_counts(stats: TickStats, bus: Bus | None, status: BusStatus | None)
         stats.late_packets = end.late_packets - status.late_packets
 
 
-def _start_pose(arm: Arm, bus: Bus | None, q_start: npt.NDArray[np.float64] | None) -> npt.NDArray[np.float64]:
+def _start_pose(arm: Plant, bus: Bus | None, q_start: npt.NDArray[np.float64] | None) -> npt.NDArray[np.float64]:
     """The bus's present positions, else ``q_start``, else the arm's rest pose; clamped to the limits."""
     if bus is not None:
         q = np.asarray(bus.read_positions(), dtype=np.float64)
@@ -284,13 +335,14 @@ class _Run:
 
     def __init__(
         self,
-        arm: Arm,
+        arm: Plant,
         source: TargetSource,
         solver: TickSolver,
         config: LoopConfig,
         q_cmd: npt.NDArray[np.float64],
         first: int,
         recorder: StatsRecorder,
+        check: Checker | None,
     ):
         self.source, self.target_at, self.solve = source, source.target_at, solver.solve
         self.max_ticks, self.recorder = config.max_ticks, recorder
@@ -300,7 +352,7 @@ class _Run:
         self.q_cmd = q_cmd  #: the commanded pose as an array: a new one each tick that moves
         self.target = np.full(3, np.nan)  #: the last target (held ticks report it)
         self.slot = first  #: the running tick's slot
-        self.check = None if config.collision is None else GoalCheck(config.collision, q_cmd)
+        self.check = check
         self.blocked = False  #: the running tick's goal was blocked
         self.last_slot = first - 1  #: the slot of the last tick that sent its goals
 
@@ -365,7 +417,11 @@ class _Run:
         if isinstance(goal, JointGoal):  # a pose in joint space: no IK
             self.target = goal.target
             limited = limiter.step(goal.q.tolist(), elapsed, goal.max_step)
-            error, sweeps, converged, clamped = 0.0, 0, True, False
+            error, sweeps, converged, clamped = 0.0, 0, True, goal.clamped
+            if goal.ik is not None:  # planned ahead from this IK solution: its figures are the tick's
+                error, sweeps, converged = goal.ik.error, goal.ik.iterations, goal.ik.converged
+                if goal.ik.blocked:
+                    self.recorder.series.ik_blocked += 1
         else:
             self.target, rotation, clamped = goal
             result = self.solve(self.target, limiter.seed(elapsed), rotation)

@@ -5,6 +5,22 @@
 :class:`Placement` in the world, its port and the human side that drives it.
 """
 
+from retarget.rig.mapping import RigTargets, rig_targets
+from retarget.rig.plant import RigPlant
+from retarget.rig.replay import RigReplay
 from retarget.rig.spec import Placement, Rig, RigArm, list_rigs, load_rig, rig_dirs
+from retarget.rig.summary import RigSummary
 
-__all__ = ["Placement", "Rig", "RigArm", "list_rigs", "load_rig", "rig_dirs"]
+__all__ = [
+    "Placement",
+    "Rig",
+    "RigArm",
+    "RigPlant",
+    "RigReplay",
+    "RigSummary",
+    "RigTargets",
+    "list_rigs",
+    "load_rig",
+    "rig_dirs",
+    "rig_targets",
+]

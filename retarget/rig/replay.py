@@ -1,0 +1,295 @@
+"""Bimanual replay: one clip on every arm of a rig, in lockstep, by the tick loop of one arm.
+
+:class:`RigReplay` runs :func:`~retarget.control.loop.run_ticks` on the rig's :class:`~retarget.rig.plant.RigPlant`
+(every arm's joints as one vector), so each tick steps every arm within its velocity and acceleration limits,
+checks the whole rig (:class:`~retarget.rig.check.RigGoalCheck`: each arm against itself and the world, and the
+arms against each other, pose and path) and writes every arm in one bus call (a ``RigBus`` over the arms' buses).
+A fault on any bus ends the run for every arm, and the caller's close runs every arm's shutdown.
+
+Before the run, IK solves each arm's targets for every slot of the clip window (:class:`ArmPath`): each arm's own
+collision-aware :class:`~retarget.ik.CCDSolver`, warm-started from its previous solution.  The ticks then steer
+to those poses (:class:`~retarget.control.source.JointGoal`); the loop's step limit and the rig check stay the
+last word before each write.  On a bus a lead-in first moves every arm from where it is to the clip's first
+poses (straight in joint space when that path is clear, else through the arms' homes, else refused).
+
+Each tick's record is one for the rig (targets ``(3 n_arms,)`` metres, every arm's base frame in turn, joints the
+plant's); :meth:`RigReplay.arm_record` gives one arm's part of it, with that arm's IK outcome.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+
+from retarget.control.bus import Bus
+from retarget.control.clock import Clock, MonotonicClock
+from retarget.control.loop import LoopConfig, TickRecord, run_ticks
+from retarget.control.replay import ControlLoop, LeadIn
+from retarget.control.safety import Route
+from retarget.control.source import JointGoal, TargetSource, TickGoal
+from retarget.control.stats import TickStats
+from retarget.errors import BusError, ConfigError
+from retarget.rig.check import RigGoalCheck
+from retarget.rig.clearance import RigClearance
+from retarget.rig.mapping import RigTargets
+from retarget.rig.plant import RigPlant
+from retarget.rig.spec import Rig
+from retarget.rig.summary import RigSummary, summarize_rig
+
+if TYPE_CHECKING:
+    from retarget.collision import CollisionModel
+
+__all__ = ["ArmPath", "RigReplay"]
+
+log = logging.getLogger(__name__)
+
+Array = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class ArmPath:
+    """One arm's IK over the slots of a pass: ``q`` ``(n_slots, n_joints)`` rad, ``targets`` ``(n_slots, 3)`` m
+    (base frame), ``error`` ``(n_slots,)`` m, ``sweeps``, ``converged`` and ``blocked`` ``(n_slots,)``."""
+
+    q: Array
+    targets: Array
+    error: Array
+    sweeps: npt.NDArray[np.int64]
+    converged: npt.NDArray[np.bool_]
+    blocked: npt.NDArray[np.bool_]
+
+    @classmethod
+    def solve(cls, loop: ControlLoop) -> ArmPath:
+        """IK for every slot of ``loop``'s pass, warm-started from the previous solution (the first from
+        :meth:`~retarget.control.replay.ControlLoop.initial_pose`)."""
+        positions, _, _ = loop.sample(0, loop.n_slots)
+        q = loop.initial_pose()
+        n = len(positions)
+        out = np.empty((n, q.size))
+        error, sweeps = np.empty(n), np.empty(n, dtype=np.int64)
+        converged, blocked = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
+        solve = loop.solver.solve
+        for k in range(n):
+            result = solve(positions[k], q, None)
+            q = result.q
+            out[k], error[k], sweeps[k] = q, result.error, result.iterations
+            converged[k], blocked[k] = result.converged, result.blocked
+        return cls(out, positions, error, sweeps, converged, blocked)
+
+
+class RigReplay:
+    """Plays a clip's :class:`~retarget.rig.mapping.RigTargets` on every arm of ``rig`` (see the module docstring).
+
+    ``config``: rate, window, speed and limits for every arm (its ``collision`` is ignored: ``models`` holds each
+    arm's own collision model, by arm name; None: no collision check at all); ``clearance``: metres between the
+    arms.  ``on_tick(record)`` gets every tick's record (the rig's; :meth:`arm_record` splits it), ``on_progress``
+    as in :class:`~retarget.control.replay.ControlLoop`.  :meth:`run` plays it and returns a
+    :class:`~retarget.rig.summary.RigSummary`.
+
+    >>> from retarget.bvh.parse import DEMO_CLIP, load_bvh
+    >>> from retarget.control.clock import VirtualClock
+    >>> from retarget.rig import load_rig, rig_targets
+    >>> rig = load_rig("wx250s-pair")
+    >>> replay = RigReplay(rig, rig_targets(load_bvh(DEMO_CLIP), rig), config=LoopConfig(max_ticks=50),
+    ...                    clock=VirtualClock())
+    >>> summary = replay.run(None)
+    >>> summary.rig.ticks, sorted(summary.arms)
+    (50, ['left', 'right'])
+    """
+
+    def __init__(
+        self,
+        rig: Rig,
+        targets: RigTargets,
+        *,
+        config: LoopConfig | None = None,
+        models: Mapping[str, CollisionModel] | None = None,
+        clearance: float | None = None,
+        clock: Clock | None = None,
+        on_tick: Callable[[TickRecord], None] | None = None,
+        on_progress: Callable[[TickRecord], None] | None = None,
+        clip_name: str = "",
+        pipeline: bool = True,
+    ):
+        self.rig, self.targets = rig, targets
+        self.plant = RigPlant.of(rig)
+        self.config = config = replace(config or LoopConfig(), collision=None)
+        self.clock: Clock = clock if clock is not None else MonotonicClock()
+        self.models = None if models is None else dict(models)
+        between = RigClearance(rig) if clearance is None else RigClearance(rig, clearance=clearance)
+        self.between = between
+        #: each arm's own loop: its targets, window, IK (collision-aware with its model)
+        self.loops = {
+            a.name: ControlLoop(
+                a.arm,
+                targets.arms[a.name],
+                config=replace(config, collision=None if self.models is None else self.models[a.name]),
+                clock=self.clock,
+            )
+            for a in rig.arms
+        }
+        first = self.loops[rig.names[0]]
+        self.n_slots, self.frames = first.n_slots, first.frames
+        self.on_tick, self.on_progress = on_tick, on_progress
+        self.clip_name, self.pipeline = clip_name, pipeline
+        self._stop = threading.Event()
+        self._paths: dict[str, ArmPath] | None = None
+
+    @property
+    def paths(self) -> dict[str, ArmPath]:
+        """Each arm's IK over the pass, by arm name (solved once, on first use)."""
+        if self._paths is None:
+            self._paths = {name: ArmPath.solve(loop) for name, loop in self.loops.items()}
+        return self._paths
+
+    def stop(self) -> None:
+        """Ask the run to end at the next tick boundary (safe from a signal handler or another thread)."""
+        self._stop.set()
+
+    def initial_pose(self) -> Array:
+        """Every arm's pose at the clip's first slot, ``(plant n_joints,)`` rad."""
+        return self.plant.join({name: path.q[0] for name, path in self.paths.items()})
+
+    def arm_record(self, record: TickRecord, name: str) -> TickRecord:
+        """Arm ``name``'s part of the rig's tick ``record``: its target, goals and read-back, and its IK outcome."""
+        i = self.rig.names.index(name)
+        part = self.plant.slices[i]
+        present = None if record.q_present is None else record.q_present[part]
+        record = replace(record, target=record.target[3 * i : 3 * i + 3], q_cmd=record.q_cmd[part], q_present=present)
+        if record.lead_in or record.tick < 0:
+            return record
+        path, k = self.paths[name], record.tick % self.n_slots
+        return replace(
+            record,
+            ik_error=float(path.error[k]),
+            ik_sweeps=int(path.sweeps[k]),
+            ik_converged=bool(path.converged[k]),
+        )
+
+    def run(self, bus: Bus | None = None, *, q_start: Array | None = None, lead_in: bool | None = None) -> RigSummary:
+        """Run on a connected ``bus`` over every arm (None: a dry run) and return the summary.  The start pose is
+        the bus's present positions, else ``q_start`` ``(plant n_joints,)`` rad, else every arm's rest pose.
+        ``lead_in``: default on a bus only.  ``BusError`` propagates with the summary so far (``exc.summary``)."""
+        if lead_in is None:
+            lead_in = bus is not None
+        source = _RigSource(self, lead_in=lead_in and self.config.lead_in_speed > 0)
+        records: list[TickRecord] = []
+
+        def on_tick(record: TickRecord) -> None:
+            records.append(record)
+            if self.on_tick is not None:
+                self.on_tick(record)
+
+        check = None
+        if self.models is not None:
+            models, between, plant = self.models, self.between, self.plant
+
+            def check(q_start: Array) -> RigGoalCheck:
+                return RigGoalCheck(plant, models, between, q_start)
+
+        try:
+            ticks = run_ticks(
+                self.plant,
+                source,
+                self.loops[self.rig.names[0]].solver,  # never called: every goal is a JointGoal
+                config=self.config,
+                clock=self.clock,
+                bus=bus,
+                q_start=q_start,
+                on_tick=on_tick,
+                on_progress=self.on_progress,
+                stop=self._stop,
+                pipeline=self.pipeline,
+                goal_check=check,
+            )
+        except BusError as exc:
+            if isinstance(exc.stats, TickStats):
+                exc.summary = self._summary(exc.stats, records)
+            raise
+        return self._summary(ticks, records)
+
+    def _summary(self, ticks: TickStats, records: list[TickRecord]) -> RigSummary:
+        played = (ticks.last_slot + 1) * self.config.speed / self.config.rate if ticks.last_slot >= 0 else 0.0
+        return summarize_rig(self, ticks, records, duration_s=played)
+
+
+class _RigSource(TargetSource):
+    """Each slot's goal of a :class:`RigReplay`: the lead-in's, then every arm's IK pose of the slot."""
+
+    def __init__(self, replay: RigReplay, *, lead_in: bool):
+        self.replay, self.with_lead_in = replay, lead_in
+        self.n_slots, self.looping = replay.n_slots, replay.config.loop
+        self.lead_in: LeadIn | Route | None = None
+        paths = replay.paths
+        self.q = replay.plant.join({name: p.q for name, p in paths.items()})  # (n_slots, plant n_joints)
+        self.targets = np.concatenate([paths[name].targets for name in replay.rig.names], axis=1)  # (n_slots, 3 n)
+
+    def start(self, q_start: Array) -> int:
+        if not self.with_lead_in:
+            return 0
+        replay, cfg = self.replay, self.replay.config
+        speed = np.minimum(cfg.lead_in_speed, cfg.velocity_scale * replay.plant.max_velocity)
+        self.lead_in = _lead_in(replay, q_start, self.q[0], speed=speed, target=self.targets[0])
+        if cfg.max_ticks is not None and self.lead_in.n_slots > cfg.max_ticks:
+            self.lead_in = self.lead_in.truncated(cfg.max_ticks)
+        return -self.lead_in.n_slots
+
+    def finished(self, tick: int) -> bool:
+        return not self.looping and tick >= self.n_slots
+
+    def clip_time(self, tick: int, t: float) -> float:
+        loop = self.replay.loops[self.replay.rig.names[0]]
+        if tick < 0:
+            return loop.config.start
+        return loop.clip_time(tick % self.n_slots if self.looping else tick)
+
+    def target_at(self, tick: int, t: float) -> TickGoal:
+        if tick < 0:
+            if self.lead_in is None:
+                raise RuntimeError("Expected start() to plan a lead-in before a slot < 0")
+            return self.lead_in.goal(tick)
+        i = tick % self.n_slots if self.looping else tick
+        return JointGoal(self.q[i], self.targets[i])
+
+
+def _lead_in(replay: RigReplay, q_from: Array, q_to: Array, *, speed: Array, target: Array) -> LeadIn | Route:
+    """The lead-in from ``q_from`` to ``q_to`` (the plant's, rad): straight when the rig check allows the whole
+    path, else through every arm's home, else a ConfigError (key ``collision``)."""
+    cfg, accel = replay.config, replay.plant.max_acceleration
+
+    def leg(a: Array, b: Array) -> LeadIn:
+        return LeadIn.plan(a, b, speed=speed, rate=cfg.rate, target=target, accel=accel)
+
+    if replay.models is None or _clear(replay, q_from, q_to):
+        return leg(q_from, q_to)
+    home = replay.plant.home
+    if _clear(replay, q_from, home) and _clear(replay, home, q_to):
+        log.info("lead-in: the straight path collides; going through the arms' homes")
+        return Route((leg(q_from, home), leg(home, q_to)))
+    raise ConfigError(
+        "Expected a collision-free lead-in to the clip's first poses, but the straight joint-space path collides "
+        "and going through the arms' homes does not avoid it",
+        key="collision",
+    )
+
+
+def _clear(replay: RigReplay, a: Array, b: Array) -> bool:
+    """Whether the straight move ``a`` -> ``b`` (the plant's, rad) keeps every clearance of the rig: each arm's
+    segment sampled by its model, and the arms against each other."""
+    assert replay.models is not None
+    for name, part in zip(replay.rig.names, replay.plant.slices, strict=True):
+        if not replay.models[name].segment_clear(a[part], b[part]).clear:
+            return False
+    motion = np.concatenate([replay.models[name].motion_per_radian for name in replay.rig.names])
+    travel = float(np.abs(b - a) @ motion)  # metres: how far any point of either arm moves, at most
+    n = max(2, math.ceil(travel / (0.5 * max(replay.between.clearance, 1e-3))) + 1)
+    s = np.linspace(0.0, 1.0, n)[:, None]
+    apart = replay.between.min_clearance(replay.plant.split(a + s * (b - a)))
+    return bool(np.all(apart >= replay.between.clearance))

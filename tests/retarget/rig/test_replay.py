@@ -1,0 +1,86 @@
+"""Bimanual replay (dry runs): each arm follows its own hand, the hands' relation is kept, the arms never touch."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import retarget
+from retarget.collision import CollisionModel
+from retarget.control.clock import VirtualClock
+from retarget.mapping import Targets, Workspace
+from retarget.mapping.config import MappingConfig
+from retarget.rig import RigReplay, RigTargets, load_rig, rig_targets
+from tests.helpers import SHARED_BVH, sampled_min_clearance
+
+PUSH = SHARED_BVH / "push.bvh"
+needs_push = pytest.mark.skipif(not PUSH.is_file(), reason=f"real BVH clips not found at {SHARED_BVH}")
+
+
+def tool_in_world(rig_arm, q):
+    """The tool point of ``q`` (rad) in the world, by the arm's own FK and the rig's placement (``(3,)`` m)."""
+    return rig_arm.placement.to_world(rig_arm.arm.fk(q)[0][:3, 3])
+
+
+def dry_run(rig, targets, **kwargs):
+    models = {a.name: CollisionModel.for_arm(a.arm) for a in rig.arms}
+    records = []
+    replay = RigReplay(rig, targets, models=models, clock=VirtualClock(), on_tick=records.append, **kwargs)
+    summary = replay.run(None, q_start=replay.initial_pose())
+    return replay, summary, records
+
+
+@needs_push
+def test_each_arm_follows_its_own_hand_and_the_hands_keep_their_distance():
+    rig = load_rig("aloha")
+    targets = rig_targets(retarget.load_bvh(PUSH), rig)
+    replay, summary, records = dry_run(rig, targets)
+    assert summary.rig.ticks == len(records) == replay.n_slots
+    times = np.array([r.clip_time for r in records])
+    tools = {}
+    for a in rig.arms:
+        q = np.array([replay.arm_record(r, a.name).q_cmd for r in records])
+        tools[a.name] = np.array([tool_in_world(a, x) for x in q])
+        own = np.array([targets.arms[a.name].reference(times)]).reshape(-1, 3)
+        own_world = a.placement.to_world(own)
+        # each tool point is at its own hand's target, and far from the other hand's
+        err = np.linalg.norm(tools[a.name] - own_world, axis=1)
+        assert np.percentile(err, 95) < 0.03, a.name
+        assert summary.arms[a.name].ik_converged_pct > 95
+    left, right = rig.names
+    hands = np.linalg.norm(
+        rig[left].placement.to_world(targets.arms[left].reference(times))
+        - rig[right].placement.to_world(targets.arms[right].reference(times)),
+        axis=1,
+    )
+    robot = np.linalg.norm(tools[left] - tools[right], axis=1)
+    assert np.median(np.abs(robot - hands)) < 0.02  # the tools' distance follows the hands' (scaled, clamped)
+    for r in records[::3]:  # no contact between the arms, by the independent brute-force check
+        poses = {a.name: replay.arm_record(r, a.name).q_cmd for a in rig.arms}
+        assert sampled_min_clearance(rig, poses, spacing=0.01) > 0
+
+
+def clap(rig, *, seconds=3.0, frame_time=1 / 30):
+    """Both hands from 0.25 m out to the rig's middle line, 0.3 m ahead at 0.25 m height: a clap."""
+    t = np.arange(0.0, seconds + 1e-9, frame_time)
+    s = np.clip(t / (seconds - 1.0), 0.0, 1.0)[:, None]
+    config = MappingConfig()
+    arms, world = {}, {}
+    for a, sign in zip(rig.arms, (1.0, -1.0), strict=True):
+        y = a.placement.xyz[1]
+        start = np.array([0.3, y - sign * 0.05, 0.25])
+        end = np.array([0.3, 0.0, 0.25])
+        world[a.name] = start + s * (end - start)
+        arms[a.name] = Targets.from_raw(
+            a.placement.to_base(world[a.name]), frame_time=frame_time, workspace=Workspace.for_arm(a.arm, config)
+        )
+    return RigTargets(arms=arms, world=world, scale=1.0, origin=np.zeros(3))
+
+
+def test_hands_that_clap_stop_at_the_clearance():
+    rig = load_rig("wx250s-pair")
+    replay, summary, records = dry_run(rig, clap(rig))
+    assert summary.rig.blocked_ticks > 0  # the goals into the other arm were not written
+    assert summary.rig.min_clearance_mm >= 10.0 - 1e-6
+    last = {a.name: replay.arm_record(records[-1], a.name).q_cmd for a in rig.arms}
+    assert 0.0 < sampled_min_clearance(rig, last, spacing=0.004) < 0.04  # they came close, and stopped
