@@ -2,15 +2,21 @@
 
 from __future__ import annotations
 
+import csv
+import io
+
 import numpy as np
 import pytest
 
 import retarget
+from retarget.bvh.parse import DEMO_CLIP
 from retarget.collision import CollisionModel
 from retarget.control.clock import VirtualClock
+from retarget.control.loop import LoopConfig
 from retarget.mapping import Targets, Workspace
 from retarget.mapping.config import MappingConfig
 from retarget.rig import RigReplay, RigTargets, load_rig, rig_targets
+from retarget.rig.telemetry import RigTelemetry
 from tests.helpers import SHARED_BVH, sampled_min_clearance
 
 PUSH = SHARED_BVH / "push.bvh"
@@ -84,3 +90,22 @@ def test_hands_that_clap_stop_at_the_clearance():
     assert summary.rig.min_clearance_mm >= 10.0 - 1e-6
     last = {a.name: replay.arm_record(records[-1], a.name).q_cmd for a in rig.arms}
     assert 0.0 < sampled_min_clearance(rig, last, spacing=0.004) < 0.04  # they came close, and stopped
+
+
+def test_telemetry_has_each_arms_columns_and_their_tracking_error():
+    rig = load_rig("wx250s-pair")
+    targets = rig_targets(retarget.load_bvh(DEMO_CLIP), rig)
+    replay = RigReplay(rig, targets, config=LoopConfig(max_ticks=30), clock=VirtualClock())
+    text = io.StringIO()
+    with RigTelemetry(text, replay) as telemetry:
+        replay.on_tick = telemetry
+        replay.run(None, q_start=replay.initial_pose())
+    rows = list(csv.DictReader(io.StringIO(text.getvalue())))
+    assert len(rows) == 30
+    for a in rig.arms:
+        for row in rows[::7]:
+            q = np.array([float(row[f"{a.name}/{j}_cmd_rad"]) for j in a.arm.joint_names])
+            mapped = targets.arms[a.name].reference(np.array([float(row["clip_time_s"])]))[0]
+            expected = 1e3 * np.linalg.norm(a.arm.fk(q)[0][:3, 3] - mapped)
+            assert float(row[f"{a.name}/tracking_mm"]) == pytest.approx(expected, abs=2e-3)
+            assert row[f"{a.name}/waist_present_rad"] == ""  # a dry run reads nothing back
