@@ -1,21 +1,28 @@
-"""Benchmark: smooth motion (issue 14), today (the loop before: velocity limit only, unfiltered targets) vs now
+"""Benchmark: smooth motion (issue 14), TODAY (the tree at commit 24ac570, when the issue was written) vs now
 (the default loop exactly as ``retarget export CLIP --arm ARM --side SIDE`` builds it: the CLI's own
-``offline_loop``, with whatever target filter and acceleration limit are the defaults), offline.
+``offline_loop``, with whatever target filter, acceleration limit and look-ahead are the defaults), offline.
 
     python bench/bench_smooth.py                       # every clip in ../shared/bvh, both sides, wx250s + koch
     python bench/bench_smooth.py --clips motion_dance --arms wx250s --sides right
-    python bench/bench_smooth.py --clips motion_dance --flags '--filter-cutoff 4'   # 'now' with export's flags
+    python bench/bench_smooth.py --clips motion_dance --flags '--no-look-ahead'   # 'now' with export's flags
+    python bench/bench_smooth.py --today-tree /tmp/today14   # re-measure TODAY from a worktree of 24ac570
     RETARGET_SHARED_BVH=/data/bvh python bench/bench_smooth.py
 
+TODAY is the table :data:`TODAY`: measured once from that tree's ``retarget export`` CSVs (``--today-tree`` does
+it again, one subprocess per clip, arm and side), against this tree's *unfiltered* mapped targets.
 Per clip, arm and side, today | now:
 - ``over``: ticks whose joint acceleration exceeds the arm's ``max_acceleration`` (target 0); in brackets the
   ones next to a collision-blocked tick (the collision check's instant stop, counted apart);
-- ``peak``: the peak joint acceleration, rad/s^2, besides those instant stops (target on motion_dance: 10x lower);
-- ``vlim``: velocity-limited ticks (target: 5x fewer);
+- ``peak``: the peak joint acceleration, rad/s^2, besides those instant stops;
+- ``cap``: velocity-limited ticks, counted the same way in both columns from the commanded joints: ticks where
+  some joint's commanded speed is at least 0.999 x its max velocity (a planner that runs at full speed counts, as
+  the limiter's own flag would not); target: 5x fewer than TODAY;
 - ``redund``: the redundant joints' total travel, rad (forearm_roll + wrist_rotate on a 6-DOF arm; target <= 1);
 - ``p95``: the tracking error p95, mm: the unfiltered mapped target to the commanded tool point (target on
-  motion_dance <= 15, and nowhere worse than today);
-- ``RTF``: the offline real-time factor of the run (clip seconds per wall second, single run).
+  motion_dance right <= 15, and nowhere worse than TODAY);
+- ``RTF``: the offline real-time factor of the run (clip seconds per wall second, single run; target >= 100),
+  the look-ahead plan's IK and passes included;
+- ``met``: each target met (``+``) or missed (``-``), in the order over, cap, redund, p95, RTF.
 """
 
 from __future__ import annotations
@@ -23,7 +30,9 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import os
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -44,19 +53,62 @@ SHARED = Path(os.environ.get("RETARGET_SHARED_BVH", REPO.parent / "shared" / "bv
 REDUNDANT = {"forearm_roll", "wrist_rotate"}
 
 
-def unlimited(arm: Arm) -> Arm:
-    """``arm`` without an acceleration limit (the loop before issue 14)."""
-    joints = tuple(dataclasses.replace(j, max_acceleration=1e12) for j in arm.joints)
-    return dataclasses.replace(arm, joints=joints)
+#: TODAY, (clip, arm, side) -> (peak rad/s^2, cap ticks, p95 mm): the tree at commit 24ac570 (issue 14), measured
+#: from its ``retarget export CLIP --arm ARM --side SIDE -o CSV`` (run in a worktree of that commit, its own
+#: defaults: unfiltered targets, velocity limit only), against this tree's unfiltered mapped targets, exactly as
+#: :func:`measure_today` does with ``--today-tree``.  Its own velocity-limited flag gave the same counts but for
+#: one tick on three rows.  (koch's rows in that tree are not collision-checked, see the issue.)
+TODAY: dict[tuple[str, str, str], tuple[float, int, float]] = {
+    ("motion_basket", "wx250s", "right"): (303.3, 30, 1.0),
+    ("motion_basket", "wx250s", "left"): (628.3, 204, 56.6),
+    ("motion_basket", "koch", "right"): (628.3, 132, 4.5),
+    ("motion_basket", "koch", "left"): (406.5, 2, 1.0),
+    ("motion_dance", "wx250s", "right"): (442.9, 224, 17.6),
+    ("motion_dance", "wx250s", "left"): (589.5, 404, 32.0),
+    ("motion_dance", "koch", "right"): (628.3, 288, 12.7),
+    ("motion_dance", "koch", "left"): (628.3, 432, 14.6),
+    ("motion_walk", "wx250s", "right"): (243.2, 6, 1.0),
+    ("motion_walk", "wx250s", "left"): (628.3, 629, 97.2),
+    ("motion_walk", "koch", "right"): (602.4, 42, 1.0),
+    ("motion_walk", "koch", "left"): (336.6, 147, 6.0),
+    ("push", "wx250s", "right"): (44.4, 0, 1.0),
+    ("push", "wx250s", "left"): (34.6, 0, 1.0),
+    ("push", "koch", "right"): (84.3, 0, 1.0),
+    ("push", "koch", "left"): (80.3, 0, 1.0),
+    ("unity_walk_random", "wx250s", "right"): (628.3, 984, 36.2),
+    ("unity_walk_random", "wx250s", "left"): (628.3, 490, 7.8),
+    ("unity_walk_random", "koch", "right"): (628.3, 181, 1.0),
+    ("unity_walk_random", "koch", "left"): (628.3, 131, 1.0),
+}
+CAP = 0.999  #: a joint at this fraction of its max velocity or more is at its velocity limit
 
 
 def unfiltered(motion: retarget.Motion, arm: Arm, side: str) -> Targets:
-    """The clip's mapped targets without any filter (the tracking error's reference, and today's input)."""
+    """The clip's mapped targets without any filter (the tracking error's reference)."""
     overrides: dict[str, object] = {"side": side}
     if "cutoff_hz" in {f.name for f in dataclasses.fields(MappingConfig)}:
         overrides["cutoff_hz"] = 0.0
     config = MappingConfig.from_table(arm.mapping, overrides=overrides)
     return retarget_targets(motion, arm, config)
+
+
+def figures(
+    q: np.ndarray, q0: np.ndarray, times: np.ndarray, arm: Arm, clean: Targets, rate: float
+) -> dict[str, float]:
+    """``q`` ``(n, n_joints)`` rad commanded at clip ``times`` ``(n,)`` s from ``q0`` at rest, against ``arm``'s
+    limits and the unfiltered targets ``clean``: peak, over (a flag per tick), cap, redund, p95."""
+    v = np.diff(np.vstack([q0, q]), axis=0) * rate
+    a = np.diff(np.vstack([np.zeros(arm.n_joints), v]), axis=0) * rate  # from rest at the first pose
+    tool = arm.chain.fk_batch(q)[:, :3, 3]
+    goal, _, _ = clean.sample(times)
+    redundant = [i for i, n in enumerate(arm.joint_names) if n in REDUNDANT]
+    return {
+        "over_flags": np.any(np.abs(a) > arm.max_acceleration * (1 + 1e-6), axis=1),
+        "abs_accel": np.abs(a),
+        "cap": int(np.sum(np.any(np.abs(v) >= CAP * arm.max_velocity, axis=1))),
+        "redund": float(np.abs(np.diff(q[:, redundant], axis=0)).sum()) if redundant else 0.0,
+        "p95": float(np.percentile(1000 * np.linalg.norm(tool - goal, axis=1), 95)),
+    }
 
 
 def measure(loop: ControlLoop, arm: Arm, clean: Targets) -> dict[str, float]:
@@ -67,24 +119,17 @@ def measure(loop: ControlLoop, arm: Arm, clean: Targets) -> dict[str, float]:
     t0 = time.perf_counter()
     summary = loop.run(None, q_start=q0)
     wall = time.perf_counter() - t0
-    q = np.array([q0, *(r.q_cmd for r in records)])
+    q = np.array([r.q_cmd for r in records])
     blocked = np.array([False, *(r.blocked for r in records)])
-    rate = loop.config.rate
-    v = np.diff(q, axis=0) * rate
-    a = np.diff(np.vstack([np.zeros(arm.n_joints), v]), axis=0) * rate  # from rest at the first pose
-    over = np.any(np.abs(a) > arm.max_acceleration * (1 + 1e-6), axis=1)
+    f = figures(q, q0, np.array([r.clip_time for r in records]), arm, clean, loop.config.rate)
     near_block = blocked[1:] | blocked[:-1]
-    tool = np.array([arm.fk(x)[0][:3, 3] for x in q[1:]])
-    goal, _, _ = clean.sample(np.array([r.clip_time for r in records]))
-    err_mm = 1000 * np.linalg.norm(tool - goal, axis=1)
-    redundant = [i for i, n in enumerate(arm.joint_names) if n in REDUNDANT]
+    over = f.pop("over_flags")
+    accel = f.pop("abs_accel")
     return {
+        **f,
         "over": int(np.sum(over & ~near_block)),
         "over_blocked": int(np.sum(over & near_block)),
-        "peak": float(np.abs(a[~near_block]).max()),  # the collision check's instant stops apart
-        "vlim": summary.velocity_limited_ticks,
-        "redund": float(np.abs(np.diff(q[:, redundant], axis=0)).sum()) if redundant else 0.0,
-        "p95": float(np.percentile(err_mm, 95)),
+        "peak": float(accel[~near_block].max()),  # the collision check's instant stops apart
         "rtf": summary.duration_s / wall,
     }
 
@@ -96,18 +141,38 @@ def export_loop(clip: Path, arm_name: str, side: str, *flags: str) -> tuple[Arm,
     return inputs.arm, loop
 
 
-def today(clip: Path, arm_name: str, side: str, clean: Targets) -> dict[str, float]:
-    """The loop before issue 14, as export ran it: unfiltered targets, no acceleration limit (the IK is today's
-    tree's); measured against the arm's limits."""
-    arm, loop = export_loop(clip, arm_name, side, "--no-filter")
-    loop.arm = unlimited(arm)
-    return measure(loop, arm, clean)
+def measure_today(tree: Path, clip: Path, arm: Arm, side: str, clean: Targets) -> tuple[float, int, float]:
+    """(peak, cap, p95) of ``retarget export`` run in the worktree ``tree`` (a subprocess, its own defaults)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "today.csv"
+        argv = [
+            sys.executable,
+            "-m",
+            "retarget",
+            "export",
+            str(clip),
+            "--arm",
+            arm.name,
+            "--side",
+            side,
+            "-o",
+            str(out),
+        ]
+        env = {**os.environ, "PYTHONPATH": str(tree)}
+        subprocess.run(argv, cwd=tree, env=env, capture_output=True, text=True, check=True)
+        data = np.loadtxt(out, delimiter=",", skiprows=1, ndmin=2)
+    times, q = data[:, 0], data[:, 1 : 1 + arm.n_joints]  # speed 1, start 0: loop time is clip time
+    f = figures(q[1:], q[0], times[1:], arm, clean, 1.0 / float(times[1] - times[0]))
+    return float(f["abs_accel"].max()), int(f["cap"]), f["p95"]
 
 
-def now(clip: Path, arm_name: str, side: str, clean: Targets, flags: list[str]) -> dict[str, float]:
-    """The default loop as ``retarget export`` builds it (with export's ``flags``, e.g. ``--filter-cutoff 4``)."""
-    arm, loop = export_loop(clip, arm_name, side, *flags)
-    return measure(loop, arm, clean)
+def targets_met(clip: str, side: str, today: tuple[float, int, float], now: dict[str, float]) -> str:
+    """``+``/``-`` per target: over 0, cap 5x fewer than TODAY, redund <= 1 rad, p95 (<= 15 mm on motion_dance
+    right; nowhere worse than TODAY, to a tenth of a mm), RTF >= 100."""
+    _, cap, p95 = today
+    p95_ok = now["p95"] <= round(p95, 1) + 0.05 and (clip != "motion_dance" or side != "right" or now["p95"] <= 15)
+    met = (now["over"] == 0, now["cap"] * 5 <= cap, now["redund"] <= 1.0, p95_ok, now["rtf"] >= 100)
+    return "".join("+" if ok else "-" for ok in met)
 
 
 def main() -> int:
@@ -115,25 +180,31 @@ def main() -> int:
     parser.add_argument("--clips", nargs="*", default=None, help="clip names (default: every *.bvh)")
     parser.add_argument("--arms", nargs="*", default=["wx250s", "koch"])
     parser.add_argument("--sides", nargs="*", default=["right", "left"])
-    parser.add_argument("--flags", default="", help="export flags for 'now', e.g. '--filter-cutoff 4'")
+    parser.add_argument("--flags", default="", help="export flags for 'now', e.g. '--no-look-ahead'")
+    parser.add_argument("--today-tree", type=Path, default=None, metavar="PATH",
+                        help="re-measure TODAY from a worktree of commit 24ac570 instead of the table")  # fmt: skip
     args = parser.parse_args()
     clips = sorted(SHARED.glob("*.bvh"))
     if args.clips:
         clips = [c for c in clips if c.stem in args.clips]
-    print(f"{'clip':18s} {'arm':6s} {'side':5s} | today: peak rad/s2, vlim, redund rad, p95 mm | "
-          "now: over (blocked), peak rad/s2, vlim, redund rad, p95 mm, RTF")  # fmt: skip
+    print(f"{'clip':18s} {'arm':6s} {'side':5s} | TODAY: peak rad/s2, cap, p95 mm | "
+          "now: over (blocked), peak rad/s2, cap, redund rad, p95 mm, RTF | met")  # fmt: skip
     for clip in clips:
         motion = retarget.load_bvh(clip)
         for arm_name in args.arms:
             arm = retarget.load_arm(arm_name)
             for side in args.sides:
                 clean = unfiltered(motion, arm, side)
-                b = today(clip, arm_name, side, clean)
-                a = now(clip, arm_name, side, clean, args.flags.split())
+                if args.today_tree is not None:
+                    b = measure_today(args.today_tree, clip, arm, side, clean)
+                else:
+                    b = TODAY.get((clip.stem, arm_name, side), (float("nan"), 0, float("nan")))
+                _, loop = export_loop(clip, arm_name, side, *args.flags.split())
+                a = measure(loop, arm, clean)
                 print(
-                    f"{clip.stem:18s} {arm_name:6s} {side:5s} | {b['peak']:6.1f} {b['vlim']:5d} {b['redund']:6.2f} "
-                    f"{b['p95']:6.1f} | {a['over']:4d} ({a['over_blocked']:3d}) {a['peak']:6.1f} {a['vlim']:5d} "
-                    f"{a['redund']:6.2f} {a['p95']:6.1f} {a['rtf']:5.0f}x",
+                    f"{clip.stem:18s} {arm_name:6s} {side:5s} | {b[0]:6.1f} {b[1]:5d} {b[2]:6.1f} | "
+                    f"{a['over']:4d} ({a['over_blocked']:3d}) {a['peak']:6.1f} {a['cap']:5d} {a['redund']:6.2f} "
+                    f"{a['p95']:6.1f} {a['rtf']:5.0f}x | {targets_met(clip.stem, side, b, a)}",
                     flush=True,
                 )
     return 0

@@ -59,6 +59,7 @@ examples:
   retarget replay dance.bvh --start 2 --end 300f   seconds or frames (suffix f) of the clip
   retarget replay dance.bvh --side left --speed 0.5 --telemetry run.csv
   retarget replay dance.bvh --dry-run --fast       solve every tick, no bus
+  retarget replay dance.bvh --dry-run --no-look-ahead   solve each tick as it comes (lags fast motion)
   retarget replay dance.bvh --filter-cutoff 3 --dry-run   smoother targets (no lag; --no-filter: none)
   retarget replay dance.bvh --arm vx300s --port /dev/ttyUSB0 --shutdown rest
   retarget replay dance.bvh --port /dev/ttyUSB0 --lead-in 0.3   a gentler move to the clip's first pose
@@ -83,6 +84,14 @@ def add_clip_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--end", default=None, metavar="T", help="clip window end: seconds, or frames as 300f")
     parser.add_argument(
         "--velocity-scale", default="1", metavar="F", help="fraction of each joint's max speed (default 1)"
+    )
+    parser.add_argument(
+        "--no-look-ahead",
+        action="store_true",
+        help="solve each tick as it comes and follow it within the speed and acceleration limits (lags fast "
+        "motion: wx250s on motion_dance left, p95 62 mm from the target instead of 49); default: solve the whole clip "
+        "first and plan the joint path ahead, within the same limits (a few passes over the ticks before the "
+        "first one; a --loop run is always causal)",
     )
     add_collision_arguments(parser)
 
@@ -282,7 +291,14 @@ def run(args: argparse.Namespace) -> int:
     telemetry = None
     try:
         clock: Clock = setup.clock if setup is not None else VirtualClock() if args.fast else MonotonicClock()
-        loop = ControlLoop(inputs.arm, inputs.targets, config=config, clock=clock, clip_name=inputs.clip.name)
+        loop = ControlLoop(
+            inputs.arm,
+            inputs.targets,
+            config=config,
+            clock=clock,
+            clip_name=inputs.clip.name,
+            look_ahead=not args.no_look_ahead,
+        )
         if args.progress or sys.stderr.isatty():
             loop.on_progress = _progress_printer(loop)
         if args.telemetry is not None:
@@ -303,6 +319,7 @@ def run(args: argparse.Namespace) -> int:
             else:
                 first = loop.initial_pose() if config.lead_in_speed > 0 else None
                 check_moves(inputs.arm, config, first=first, rest=args.shutdown == "rest")  # before torque is on
+                loop.plan()  # the look-ahead plan too: the whole clip's IK, before torque is on
                 with connected(setup.bus):
                     summary = loop.run(setup.bus)
                     if args.shutdown == "rest":  # the bus's rest move next: through home when straight collides

@@ -33,6 +33,19 @@ telemetry callback) ends it too; either way the summary says ``interrupted``.
 :func:`run_on_bus` connects the bus and always closes it, so the bus's own
 shutdown sequence (hold, rest or torque off) runs.
 
+**Look-ahead.**  A clip is known before it plays, so by default (``look_ahead=True``, ``--no-look-ahead`` to
+turn it off) :meth:`ControlLoop.plan` first solves IK for every tick of the window (the loop's own solver and
+collision guard, each tick warm-started from the last solution), then plans that joint path within the
+velocity, acceleration and joint limits looking ahead (:func:`~retarget.control.plan.plan_path`: the causal
+limiter's lag, balanced by a lead), and the ticks play the plan as :class:`JointGoal` s that carry their IK
+solution (the summary's IK figures stay the IK's).  The loop's limiter and collision check still run on every
+tick, as the last line of defence; a plan is feasible, so the limiter passes it unchanged.  On a bus the plan is
+made before the lead-in (the CLI calls :meth:`~ControlLoop.plan` before torque goes on), starting from the
+clip's first pose; a dry run plans from its start pose.  It plays one pass of the window at ``speed`` (the
+ticks actually played, ``max_ticks`` included); a ``loop`` run wraps, and plays causally instead (IK in each
+tick).  Its cost, the IK and a few passes of the profile before the first tick, counts in the summary's wall
+time and real-time factor.
+
 The tick loop's names (:class:`LoopConfig`, :class:`TickRecord`, :func:`run_ticks`, ...) are importable
 from here too.
 """
@@ -52,6 +65,7 @@ from retarget.arm.model import Arm
 from retarget.control.bus import Bus, connected
 from retarget.control.clock import Clock, MonotonicClock
 from retarget.control.loop import LoopConfig, TickRecord, run_ticks
+from retarget.control.plan import PathPlan, solve_and_plan
 from retarget.control.safety import Route, require_route
 from retarget.control.source import JointGoal, TargetSource, TickGoal, TickSolver, TickTarget
 from retarget.control.stats import TickStats
@@ -93,7 +107,8 @@ class ControlLoop:
     ``config.progress_every`` real seconds (so ``--fast`` runs do not flood the terminal), as read from
     ``progress_time()`` (default ``time.perf_counter``; a test passes a fake one to check the pacing).
     ``clip_name`` labels the summary.  ``pipeline``: overlap each tick's read-back with the next tick's
-    compute on a bus (see :mod:`~retarget.control.readback`); False reads back within the tick.
+    compute on a bus (see :mod:`~retarget.control.readback`); False reads back within the tick.  ``look_ahead``:
+    play a plan made ahead of the run (see the module docstring; a ``loop`` run plays causally).
     :meth:`run` plays it and returns the :class:`~retarget.control.summary.RunSummary`.
 
     A dry run (no bus) of a 2 s circle at 100 Hz, on a virtual clock so it takes no real time:
@@ -123,9 +138,13 @@ class ControlLoop:
         clip_name: str = "",
         progress_time: Callable[[], float] | None = None,
         pipeline: bool = True,
+        look_ahead: bool = True,
     ):
         self.arm = arm
         self.pipeline = pipeline
+        self.look_ahead = look_ahead
+        self._plan: PathPlan | None = None  #: the last plan (:meth:`plan`), kept for a run from the same pose
+        self._plan_from: npt.NDArray[np.float64] | None = None
         self.targets = targets
         self.config = config = config or LoopConfig()
         self.clock: Clock = clock if clock is not None else MonotonicClock()
@@ -201,6 +220,35 @@ class ControlLoop:
         rotation = None if rotations is None else rotations[0]
         return np.array(solver.solve(positions[0], self.arm.home, rotation).q, dtype=np.float64)
 
+    def plan(self, q_start: npt.NDArray[np.float64] | None = None) -> PathPlan | None:
+        """The look-ahead plan of the ticks a run plays (see the module docstring), from ``q_start`` ``(n_joints,)``
+        rad at rest (default :meth:`initial_pose`), made once per start pose; None when the loop plays causally
+        (``look_ahead`` off, or a ``loop`` run)."""
+        if not self.look_ahead or self.config.loop:
+            return None
+        q0 = self.initial_pose() if q_start is None else np.asarray(q_start, dtype=np.float64)
+        if q0.shape != (self.arm.n_joints,):  # the loop's own message (run_ticks checks it too)
+            raise ValueError(f"Expected a start pose of shape ({self.arm.n_joints},), got {q0.shape}")
+        q0 = np.clip(q0, self.arm.lower, self.arm.upper)
+        if self._plan is not None and self._plan_from is not None and np.array_equal(q0, self._plan_from):
+            return self._plan
+        n, cfg, arm = self.n_ticks or self.n_slots, self.config, self.arm
+        positions, rotations, clamped = self.sample(0, n)
+        self._plan = solve_and_plan(
+            self.solver,
+            positions,
+            rotations,
+            clamped,
+            q0,
+            lower=arm.lower,
+            upper=arm.upper,
+            max_step=arm.max_velocity * cfg.velocity_scale / cfg.rate,
+            max_accel=arm.max_acceleration / cfg.rate**2,
+        )
+        self._plan_from = q0
+        log.info("look-ahead: %d ticks solved and planned in %.3f s", n, self._plan.seconds)
+        return self._plan
+
     def run(
         self, bus: Bus | None = None, *, q_start: npt.NDArray[np.float64] | None = None, lead_in: bool | None = None
     ) -> RunSummary:
@@ -210,12 +258,17 @@ class ControlLoop:
         arm's rest pose.  ``lead_in``: first move from the start pose to
         :meth:`initial_pose` (see the module docstring; nothing when
         ``config.lead_in_speed`` is 0); default on a bus only, True previews it in
-        a dry run.  ``BusError`` propagates (the caller closes the bus).
+        a dry run.  With ``look_ahead`` the clip's ticks play :meth:`plan`, from the lead-in's end, else (a dry
+        run) from the start pose.  ``BusError`` propagates (the caller closes the bus).
         """
         if lead_in is None:
             lead_in = bus is not None
         lead_to = self.initial_pose() if lead_in and self.config.lead_in_speed > 0 else None
-        source = ClipSource(self, lead_in_to=lead_to)
+        if lead_to is not None or bus is not None:
+            plan = self.plan(lead_to)
+        else:
+            plan = self.plan(q_start if q_start is not None else self.arm.rest)
+        source = ClipSource(self, lead_in_to=lead_to, plan=plan)
         trajectory = Trajectory()  # the clip's ticks, for the tracking error and the acceleration (tracking.py)
         try:
             ticks = run_ticks(
@@ -236,7 +289,11 @@ class ControlLoop:
             if isinstance(exc.stats, TickStats):
                 exc.summary = self._summary(exc.stats, trajectory)
             raise
-        return self._summary(ticks, trajectory)
+        summary = self._summary(ticks, trajectory)
+        if plan is None:
+            return summary
+        wall = summary.wall_time_s + plan.seconds  # the plan's time is the clip's too, though it ran before
+        return replace(summary, wall_time_s=wall, real_time_factor=summary.run_time_s / wall)
 
     def _summary(self, ticks: TickStats, trajectory: Trajectory | None = None) -> RunSummary:
         """The summary of a run that ended with ``ticks`` (and how it followed the targets: ``trajectory``)."""
@@ -324,11 +381,19 @@ class ClipSource(TargetSource):
 
     With ``lead_in_to`` (a pose ``(n_joints,)`` rad, normally :meth:`ControlLoop.initial_pose`), ``start``
     plans a :class:`LeadIn` from the start pose to it at the config's ``lead_in_speed`` and the clip starts
-    after it, at slot 0.
+    after it, at slot 0.  With ``plan`` (:meth:`ControlLoop.plan`) slot ``k`` of the clip answers the plan's pose
+    as a :class:`JointGoal` carrying its IK solution (slots past the plan: the target, for IK in the tick).
     """
 
-    def __init__(self, loop: ControlLoop, *, lead_in_to: npt.NDArray[np.float64] | None = None):
+    def __init__(
+        self,
+        loop: ControlLoop,
+        *,
+        lead_in_to: npt.NDArray[np.float64] | None = None,
+        plan: PathPlan | None = None,
+    ):
         self.loop = loop
+        self.plan = plan
         self.n_slots = loop.n_slots
         self.looping = loop.config.loop
         self.lead_in_to = lead_in_to
@@ -377,6 +442,9 @@ class ClipSource(TargetSource):
                 raise RuntimeError("Expected start() to plan a lead-in before a slot < 0")
             return self.lead_in.goal(tick)
         i = tick % self.n_slots if self.looping else tick
+        plan = self.plan
+        if plan is not None and i < len(plan):
+            return JointGoal(plan.q[i], plan.positions[i], None, plan.ik[i], plan.clamped[i])
         if not self._block0 <= i < self._block1:  # sample the targets of the next slots, a block at a time
             if i == self._block1 or self._rotations is not None:
                 self._block0, self._block1 = i, min(i + _BLOCK, self.n_slots)

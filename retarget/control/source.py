@@ -3,7 +3,8 @@
 A source answers ``target_at(tick, t)`` with one :data:`TickGoal`:
 
 - a :class:`TickTarget` ``(position (3,) m, rotation (3, 3) | None, clamped)``: the loop solves IK for it;
-- a :class:`JointGoal` ``(q (n_joints,) rad, target (3,) m, max_step)``: a pose in joint space, no IK;
+- a :class:`JointGoal` ``(q (n_joints,) rad, target (3,) m, max_step, ik, clamped)``: a pose in joint space, no
+  IK in the tick (``ik``: the solution it was planned from ahead of the run, reported as the tick's);
 - :data:`HOLD` (``None``): keep the commanded pose, no IK (0 sweeps).
 
 Sources inherit :class:`TargetSource` and get its defaults for the optional hooks.  :func:`as_target_source`
@@ -45,6 +46,11 @@ class JointGoal(NamedTuple):
     #: ``(n_joints,)`` rad, a tighter per-tick step limit than ``velocity_scale x max_velocity / rate`` for this
     #: tick (a lead-in's own speed, kept after an overrun too); None: the loop's
     max_step: tuple[float, ...] | None = None
+    #: the IK solution this pose was planned from, ahead of the run (a clip's look-ahead plan,
+    #: :mod:`~retarget.control.plan`): the tick reports its error, sweeps, converged and blocked as its own;
+    #: None: no IK (0 sweeps, converged)
+    ik: IKResult | None = None
+    clamped: bool = False  #: the target was pulled into the workspace
 
 
 HOLD: Final = None  #: a tick's goal when there is nothing to steer toward: keep the commanded pose, run no IK

@@ -1,0 +1,209 @@
+"""Look-ahead planning of a whole joint path within the velocity, acceleration and joint limits: :func:`plan_path`.
+
+The tick loop's :class:`~retarget.control.limits.StepLimiter` is causal: it follows each tick's goal with a
+trapezoidal profile (:mod:`~retarget.control.profile`), so when the goal moves faster or turns harder than the
+joint may, the joint **lags** it and then catches up.  When the whole path is known in advance (a clip played
+offline, or planned before the run on a bus) the joint can start early instead.  :func:`plan_path` does this per
+joint, on the goal path ``g`` ``(n, n_joints)``:
+
+1. a forward pass of the same profile over ``g`` from the start pose at rest (feasible, lags ``g``) and a
+   backward pass over ``g`` reversed, from its last pose at rest, then reversed back (feasible, *leads* ``g``);
+   their average: velocity, acceleration and joint-limit boxes are convex, so it is feasible too, and the lag
+   and the lead mostly cancel;
+2. ``iterations`` rounds of correction: the goal is moved against the last plan's error,
+   ``g' = g + gain x (g - plan)``, and step 1 runs again on ``g'`` (``gain`` 0.5-1: a joint that fell short of a
+   peak aims past it);
+3. a last forward pass over the plan from the start pose at rest: the plan's first step starts from rest at
+   ``q_start`` (the average's need not), and the result is exactly what the profile allows, so the loop's own
+   limiter, fed the plan tick by tick, reproduces it.
+
+A joint whose goal path is already within its limits (from ``q_start`` at rest) is passed through unchanged
+and costs nothing; the rest cost ``2 x (iterations + 1) + 1`` passes of the 1-D profile, about 0.3 us per joint
+and tick on plain floats.
+
+**Guarantee**: every step of the plan, from ``q_start`` at rest, is within ``max_step``, every change of step
+within ``max_accel``, and every pose within ``lower..upper`` (the last pass is the profile itself, which brakes
+in time for the joint limits).  Units are slots as in :mod:`~retarget.control.profile`: rad, rad per slot, rad
+per slot^2.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+import numpy.typing as npt
+
+from retarget.control.profile import stop_speed
+from retarget.ik.result import IKResult
+
+__all__ = ["PathPlan", "plan_path", "solve_and_plan"]
+
+Array = npt.NDArray[np.float64]
+
+
+def plan_path(
+    goals: npt.ArrayLike,
+    q_start: npt.ArrayLike,
+    *,
+    lower: npt.ArrayLike,
+    upper: npt.ArrayLike,
+    max_step: npt.ArrayLike,
+    max_accel: npt.ArrayLike,
+    iterations: int = 2,
+    gain: float = 0.5,
+) -> Array:
+    """The joint path ``(n, n_joints)`` rad nearest ``goals`` ``(n, n_joints)`` rad that the limits allow, looking
+    ahead (see the module docstring).
+
+    ``q_start`` ``(n_joints,)`` rad: the pose before the first goal, at rest (inside the limits);
+    ``lower``/``upper`` ``(n_joints,)`` rad: the joint limits; ``max_step`` ``(n_joints,)`` rad per slot (> 0):
+    the velocity limit; ``max_accel`` ``(n_joints,)`` rad per slot^2 (> 0): the acceleration limit;
+    ``iterations`` (>= 0) rounds of correction with ``gain``.  Never exceeds the limits (from ``q_start`` at
+    rest); goals outside the joint limits are followed to the limit.
+
+    A step of 1 rad in one joint, at most 0.1 rad per slot and 0.02 rad per slot^2: the plan starts before the
+    step and ends after it, symmetrically (the causal limiter would only start at the step):
+
+    >>> goals = np.r_[np.zeros(20), np.ones(20)][:, None]
+    >>> p = plan_path(goals, [0.0], lower=[-2.0], upper=[2.0], max_step=[0.1], max_accel=[0.02])
+    >>> bool(p[12, 0] > 0.0), round(float(p[19, 0] + p[20, 0]), 2), round(float(p[-1, 0]), 3)
+    (True, 1.0, 1.0)
+    >>> bool(np.abs(np.diff(np.r_[[[0.0]], p], axis=0)).max() <= 0.1 + 1e-12)
+    True
+    """
+    g = np.array(goals, dtype=np.float64)
+    if g.ndim != 2:
+        raise ValueError(f"Expected goals of shape (n, n_joints), got {g.shape}")
+    n, m = g.shape
+    q0, lo, hi, vmax, amax = (np.broadcast_to(np.asarray(x, dtype=np.float64), (m,)) for x in
+                              (q_start, lower, upper, max_step, max_accel))  # fmt: skip
+    if iterations < 0:
+        raise ValueError(f"Expected iterations >= 0, got {iterations}")
+    if np.any(vmax <= 0) or np.any(amax <= 0):
+        raise ValueError("Expected max_step and max_accel > 0")
+    out = np.empty_like(g)
+    if n == 0:
+        return out
+    for j in range(m):
+        limits = (float(vmax[j]), float(amax[j]), float(lo[j]), float(hi[j]))
+        column = g[:, j]
+        if _feasible(column, float(q0[j]), limits):
+            out[:, j] = column
+            continue
+        out[:, j] = _plan_joint(column.tolist(), float(q0[j]), limits, iterations, gain)
+    return out
+
+
+def _feasible(path: Array, q0: float, limits: tuple[float, float, float, float]) -> bool:
+    """Whether ``path`` from ``q0`` at rest keeps every step, change of step and pose within ``limits`` (with the
+    profile's braking bound near the joint limits, approximately: a joint near one is planned anyway)."""
+    vmax, amax, lo, hi = limits
+    q = np.concatenate([[q0, q0], path])
+    v = np.diff(q)
+    if np.abs(v).max() > vmax or np.abs(np.diff(v)).max() > amax:
+        return False
+    far = vmax * vmax / (2.0 * amax) + vmax + amax  # profile.braking_run: farther off a limit never binds
+    return bool(path.min() - lo > far and hi - path.max() > far)
+
+
+def _plan_joint(goal: list[float], q0: float, limits: tuple[float, float, float, float], iterations: int,
+                gain: float) -> Array:  # fmt: skip
+    """:func:`plan_path` for one joint: ``goal`` ``(n,)`` rad from ``q0`` at rest."""
+    target = np.array(goal)
+    aim = goal
+    plan = target
+    for _ in range(iterations + 1):
+        forward = np.array(_follow(aim, q0, limits))
+        backward = np.array(_follow(aim[::-1], aim[-1], limits)[::-1])
+        plan = 0.5 * (forward + backward)
+        aim = (target + gain * (target - plan)).tolist()
+    return np.array(_follow(plan.tolist(), q0, limits))
+
+
+def _follow(goal: list[float], q: float, limits: tuple[float, float, float, float]) -> list[float]:
+    """The poses of one joint following ``goal`` (rad per slot) from ``q`` at rest with the trapezoidal profile
+    (:func:`~retarget.control.profile.profile_step`, inlined as in the StepLimiter; the goal's own step fed
+    forward); the loop's limiter run over a whole path at once."""
+    vmax, a, lo, hi = limits
+    far = vmax * vmax / (2.0 * a) + vmax + a
+    out: list[float] = []
+    append = out.append
+    v = 0.0
+    last = None
+    for g in goal:
+        u = 0.0 if last is None else g - last
+        last = g
+        u = vmax if u > vmax else -vmax if u < -vmax else u
+        d = g - q - u
+        w = u if d == 0.0 else u + stop_speed(d, a) if d > 0.0 else u - stop_speed(-d, a)
+        low, high = v - a, v + a
+        if low < -vmax:
+            low = -vmax
+        if high > vmax:
+            high = vmax
+        if q - lo < far:
+            low = max(low, -stop_speed(q - lo, a))
+        if hi - q < far:
+            high = min(high, stop_speed(hi - q, a))
+        if low > high:
+            w = v - a if v > 0.0 else v + a
+        else:
+            w = low if w < low else high if w > high else w
+        y = q + w
+        q = lo if y < lo else hi if y > hi else y
+        v = w
+        append(q)
+    return out
+
+
+class _Solver(Protocol):
+    """The IK a clip's path is solved with (:class:`~retarget.control.source.TickSolver`, the loop's own)."""
+
+    def solve(self, target: Array, q0: Array, rotation: Array | None = None) -> IKResult: ...
+
+
+@dataclass(frozen=True)
+class PathPlan:
+    """A clip's ticks solved and planned ahead: what :class:`~retarget.control.replay.ControlLoop` plays."""
+
+    q: Array  #: ``(n, n_joints)`` rad, the planned poses (within the limits, :func:`plan_path`)
+    ik: tuple[IKResult, ...]  #: ``n`` IK solutions the plan was made from (their error, sweeps, ... per tick)
+    positions: Array  #: ``(n, 3)`` metres, base frame: each tick's target
+    clamped: tuple[bool, ...]  #: ``n``: the target was pulled into the workspace
+    seconds: float  #: real seconds the IK pass and the plan took
+
+    def __len__(self) -> int:
+        return len(self.ik)
+
+
+def solve_and_plan(
+    solver: _Solver,
+    positions: Array,
+    rotations: Array | None,
+    clamped: npt.NDArray[np.bool_],
+    q_start: Array,
+    *,
+    lower: Array,
+    upper: Array,
+    max_step: Array,
+    max_accel: Array,
+    iterations: int = 2,
+) -> PathPlan:
+    """IK of every target ``positions`` ``(n, 3)`` m (``rotations`` ``(n, 3, 3)`` or None), each warm-started from
+    the last solution (the first from ``q_start`` ``(n_joints,)`` rad), then :func:`plan_path` of the solutions from
+    ``q_start`` at rest (limits as there, per slot)."""
+    t0 = time.perf_counter()
+    solve, q = solver.solve, np.asarray(q_start, dtype=np.float64)
+    results = []
+    for i in range(len(positions)):
+        result = solve(positions[i], q, None if rotations is None else rotations[i])
+        results.append(result)
+        q = result.q
+    qs = np.array([r.q for r in results], dtype=np.float64).reshape(len(results), len(q_start))
+    planned = plan_path(qs, q_start, lower=lower, upper=upper, max_step=max_step, max_accel=max_accel,
+                        iterations=iterations)  # fmt: skip
+    seconds = time.perf_counter() - t0
+    return PathPlan(planned, tuple(results), np.asarray(positions), tuple(clamped.tolist()), seconds)
