@@ -4,9 +4,11 @@ The trajectory is what ``retarget replay`` would command, tick by tick, at
 ``--rate``: IK warm-started from the previous tick, joint limits and velocity
 limits applied.  It starts at the IK solution of the first target (no lead-in
 from a rest pose: there is no arm; on a bus, replay's lead-in moves there first
-and then commands this trajectory).  The clip's targets are low-passed without lag first (``--filter-cutoff``,
-default 4 Hz; ``--no-filter``).  Columns: ``time_s`` then one ``<joint>_rad`` per joint (radians, the arm's
-joint order).
+and then commands this trajectory).  By default the whole clip is solved first and the joint path planned
+ahead within the velocity and acceleration limits, so the arm does not lag fast motion (``--no-look-ahead``: each
+tick solved and limited as it comes, as ``replay --loop`` runs).  The clip's targets are low-passed without lag
+first (``--filter-cutoff``, default 4 Hz; ``--no-filter``).  Columns: ``time_s`` then one ``<joint>_rad`` per
+joint (radians, the arm's joint order).
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import argparse
 import sys
 from typing import IO, Any
 
+from retarget.cli._rig_run import add_rig_option, export_rig
 from retarget.cli.replay import Inputs, add_clip_arguments, add_mapping_arguments, load_inputs, loop_config
 from retarget.control import ControlLoop, TickRecord
 from retarget.control.clock import VirtualClock
@@ -25,6 +28,7 @@ examples:
   retarget export dance.bvh --arm px100 --rate 50 -o -     to stdout
   retarget export dance.bvh --side left --start 2 --end 10 -o left.csv
   retarget export dance.bvh --arm robot.urdf --tip ee_link -o traj.csv   a URDF with several leaves
+  retarget export dance.bvh --rig aloha -o both.csv       both arms of a rig: time_s, <arm>/<joint>_rad
 """
 
 
@@ -39,6 +43,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     add_clip_arguments(parser)
     parser.add_argument("-o", "--output", default="-", metavar="CSV", help="output file, '-' = stdout (default)")
     add_mapping_arguments(parser)
+    add_rig_option(parser)
     return parser
 
 
@@ -47,11 +52,20 @@ def offline_loop(args: argparse.Namespace) -> tuple[Inputs, ControlLoop]:
     run it: ``loop.run(None, q_start=loop.initial_pose())``."""
     inputs = load_inputs(args)
     config = loop_config(args, inputs.motion, collision=inputs.collision)
-    loop = ControlLoop(inputs.arm, inputs.targets, config=config, clock=VirtualClock(), clip_name=inputs.clip.name)
+    loop = ControlLoop(
+        inputs.arm,
+        inputs.targets,
+        config=config,
+        clock=VirtualClock(),
+        clip_name=inputs.clip.name,
+        look_ahead=not args.no_look_ahead,
+    )
     return inputs, loop
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.rig is not None:
+        return export_rig(args, loop_config)
 
     inputs, loop = offline_loop(args)
     q0 = loop.initial_pose()

@@ -7,9 +7,10 @@ arms against each other, pose and path) and writes every arm in one bus call (a 
 A fault on any bus ends the run for every arm, and the caller's close runs every arm's shutdown.
 
 Before the run, IK solves each arm's targets for every slot of the clip window (:class:`ArmPath`): each arm's own
-collision-aware :class:`~retarget.ik.CCDSolver`, warm-started from its previous solution.  The ticks then steer
-to those poses (:class:`~retarget.control.source.JointGoal`); the loop's step limit and the rig check stay the
-last word before each write.  On a bus a lead-in first moves every arm from where it is to the clip's first
+collision-aware :class:`~retarget.ik.CCDSolver`, warm-started from its previous solution; that path is planned
+ahead within the limits (``look_ahead``, as one arm's clip is).  The ticks then steer to those poses
+(:class:`~retarget.control.source.JointGoal`); the loop's step limit and the rig check stay the last word before
+each write.  On a bus a lead-in first moves every arm from where it is to the clip's first
 poses (straight in joint space when that path is clear, else through the arms' homes, else refused).
 
 Each tick's record is one for the rig (targets ``(3 n_arms,)`` metres, every arm's base frame in turn, joints the
@@ -31,17 +32,19 @@ import numpy.typing as npt
 from retarget.control.bus import Bus
 from retarget.control.clock import Clock, MonotonicClock
 from retarget.control.loop import LoopConfig, TickRecord, run_ticks
+from retarget.control.plan import plan_path
 from retarget.control.replay import ControlLoop, LeadIn
 from retarget.control.safety import Route
 from retarget.control.source import JointGoal, TargetSource, TickGoal
 from retarget.control.stats import TickStats
+from retarget.control.tracking import Trajectory, following
 from retarget.errors import BusError, ConfigError
 from retarget.rig.check import RigGoalCheck
 from retarget.rig.clearance import RigClearance
 from retarget.rig.mapping import RigTargets
 from retarget.rig.plant import RigPlant
 from retarget.rig.spec import Rig
-from retarget.rig.summary import RigSummary, summarize_rig
+from retarget.rig.summary import RigSummary
 
 if TYPE_CHECKING:
     from retarget.collision import CollisionModel
@@ -87,21 +90,23 @@ class ArmPath:
 class RigReplay:
     """Plays a clip's :class:`~retarget.rig.mapping.RigTargets` on every arm of ``rig`` (see the module docstring).
 
-    ``config``: rate, window, speed and limits for every arm (its ``collision`` is ignored: ``models`` holds each
-    arm's own collision model, by arm name; None: no collision check at all); ``clearance``: metres between the
-    arms.  ``on_tick(record)`` gets every tick's record (the rig's; :meth:`arm_record` splits it), ``on_progress``
-    as in :class:`~retarget.control.replay.ControlLoop`.  :meth:`run` plays it and returns a
-    :class:`~retarget.rig.summary.RigSummary`.
+        ``config``: rate, window, speed and limits for every arm (its ``collision`` is ignored: ``models`` holds each
+        arm's own collision model, by arm name; None: no collision check at all); ``clearance``: metres between the
+        arms.  ``on_tick(record)`` gets every tick's record (the rig's; :meth:`arm_record` splits it), ``on_progress``
+        as in :class:`~retarget.control.replay.ControlLoop`; ``look_ahead``: the arms' IK paths are planned ahead within
+    their limits (:func:`~retarget.control.plan.plan_path`; a ``loop`` run plays them causally).  :meth:`run` plays
+    it and returns a
+        :class:`~retarget.rig.summary.RigSummary`.
 
-    >>> from retarget.bvh.parse import DEMO_CLIP, load_bvh
-    >>> from retarget.control.clock import VirtualClock
-    >>> from retarget.rig import load_rig, rig_targets
-    >>> rig = load_rig("wx250s-pair")
-    >>> replay = RigReplay(rig, rig_targets(load_bvh(DEMO_CLIP), rig), config=LoopConfig(max_ticks=50),
-    ...                    clock=VirtualClock())
-    >>> summary = replay.run(None)
-    >>> summary.rig.ticks, sorted(summary.arms)
-    (50, ['left', 'right'])
+        >>> from retarget.bvh.parse import DEMO_CLIP, load_bvh
+        >>> from retarget.control.clock import VirtualClock
+        >>> from retarget.rig import load_rig, rig_targets
+        >>> rig = load_rig("wx250s-pair")
+        >>> replay = RigReplay(rig, rig_targets(load_bvh(DEMO_CLIP), rig), config=LoopConfig(max_ticks=50),
+        ...                    clock=VirtualClock())
+        >>> summary = replay.run(None)
+        >>> summary.rig.ticks, sorted(summary.arms)
+        (50, ['left', 'right'])
     """
 
     def __init__(
@@ -117,8 +122,10 @@ class RigReplay:
         on_progress: Callable[[TickRecord], None] | None = None,
         clip_name: str = "",
         pipeline: bool = True,
+        look_ahead: bool = True,
     ):
         self.rig, self.targets = rig, targets
+        self.look_ahead = look_ahead
         self.plant = RigPlant.of(rig)
         self.config = config = replace(config or LoopConfig(), collision=None)
         self.clock: Clock = clock if clock is not None else MonotonicClock()
@@ -217,7 +224,7 @@ class RigReplay:
 
     def _summary(self, ticks: TickStats, records: list[TickRecord]) -> RigSummary:
         played = (ticks.last_slot + 1) * self.config.speed / self.config.rate if ticks.last_slot >= 0 else 0.0
-        return summarize_rig(self, ticks, records, duration_s=played)
+        return _summarize(self, ticks, records, duration_s=played)
 
 
 class _RigSource(TargetSource):
@@ -232,9 +239,21 @@ class _RigSource(TargetSource):
         self.targets = np.concatenate([paths[name].targets for name in replay.rig.names], axis=1)  # (n_slots, 3 n)
 
     def start(self, q_start: Array) -> int:
+        replay, cfg = self.replay, self.replay.config
+        if replay.look_ahead and not self.looping:  # plan the played ticks ahead, from where the clip starts
+            n = self.n_slots if cfg.max_ticks is None else min(self.n_slots, cfg.max_ticks)
+            plant = replay.plant
+            self.q = self.q.copy()
+            self.q[:n] = plan_path(
+                self.q[:n],
+                self.q[0] if self.with_lead_in else np.clip(q_start, plant.lower, plant.upper),
+                lower=plant.lower,
+                upper=plant.upper,
+                max_step=plant.max_velocity * cfg.velocity_scale / cfg.rate,
+                max_accel=plant.max_acceleration / cfg.rate**2,
+            )
         if not self.with_lead_in:
             return 0
-        replay, cfg = self.replay, self.replay.config
         speed = np.minimum(cfg.lead_in_speed, cfg.velocity_scale * replay.plant.max_velocity)
         self.lead_in = _lead_in(replay, q_start, self.q[0], speed=speed, target=self.targets[0])
         if cfg.max_ticks is not None and self.lead_in.n_slots > cfg.max_ticks:
@@ -293,3 +312,34 @@ def _clear(replay: RigReplay, a: Array, b: Array) -> bool:
     s = np.linspace(0.0, 1.0, n)[:, None]
     apart = replay.between.min_clearance(replay.plant.split(a + s * (b - a)))
     return bool(np.all(apart >= replay.between.clearance))
+
+
+def _summarize(replay: RigReplay, ticks: TickStats, records: list[TickRecord], *, duration_s: float) -> RigSummary:
+    """The summary of ``replay``'s run that ended with ``ticks``, from its tick ``records`` (the rig's)."""
+    rig = ticks.summary(arm=replay.rig.name, clip=replay.clip_name, frames=replay.frames, duration_s=duration_s)
+    clip = [r for r in records if not r.lead_in]
+    rate = replay.config.rate
+    arms = {}
+    for a, part in zip(replay.rig.arms, replay.plant.slices, strict=True):
+        own = [replay.arm_record(r, a.name) for r in clip]
+        trajectory = Trajectory()
+        for r in own:
+            trajectory(r)
+        err_mm = np.array([r.ik_error for r in own]) * 1e3
+        q = np.array([r.q_cmd for r in own]).reshape(len(own), -1)
+        speeds = np.abs(np.diff(q, axis=0)) * rate
+        limited = int(np.count_nonzero(np.any(speeds >= 0.999 * replay.plant.max_velocity[part], axis=1)))
+        n = len(own)
+        summary = replace(
+            rig,
+            arm=f"{a.name} ({a.arm.name})",
+            ik_converged_pct=100.0 * sum(r.ik_converged for r in own) / n if n else 0.0,
+            ik_error_median_mm=float(np.median(err_mm)) if n else 0.0,
+            ik_error_p95_mm=float(np.percentile(err_mm, 95)) if n else 0.0,
+            ik_error_max_mm=float(err_mm.max()) if n else 0.0,
+            ik_sweeps_mean=float(np.mean([r.ik_sweeps for r in own])) if n else 0.0,
+            velocity_limited_ticks=limited,
+        )
+        reference = replay.targets.arms[a.name].reference
+        arms[a.name] = summary.with_following(following(a.arm, trajectory, rate=rate, reference=reference))
+    return RigSummary(rig=rig, arms=arms)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import pytest
 
@@ -55,3 +56,29 @@ def test_list(capsys):
 def test_bad_input_is_one_line_and_exit_2(capsys, argv, message):
     code, out, err = run(capsys, *argv)
     assert (code, out, err) == (2, "", message)
+
+
+def test_export_rig_writes_every_arm_and_reports_each(capsys, tmp_path):
+    out = tmp_path / "both.csv"
+    code = main(["export", "--rig", "wx250s-pair", "--end", "1", "-o", str(out)])
+    err = capsys.readouterr().err
+    assert code == 0
+    lines = out.read_text().splitlines()
+    header = lines[0].split(",")
+    assert header[0] == "time_s" and header[1] == "left/waist_rad" and header[7] == "right/waist_rad"
+    assert len(header) == 13 and len(lines) == 1 + 101  # 1 s at 100 Hz, both ends
+    assert "rig wx250s-pair" in err and "  left: IK" in err and "  right: IK" in err
+
+
+@pytest.mark.parametrize(
+    ("flags", "match"),
+    [
+        (["--side", "left"], r"--side: Expected no arm or side with --rig .*\(got 'left'\)"),
+        (["--arm", "px100"], r"--arm: Expected no arm or side with --rig"),
+    ],
+    ids=["side", "arm"],
+)
+def test_export_rig_refuses_one_arm_options(capsys, flags, match):
+    code = main(["export", "--rig", "wx250s-pair", "-o", "-", *flags])
+    assert code == 2
+    assert re.search(match, capsys.readouterr().err)
