@@ -5,6 +5,7 @@
 :class:`Placement` in the world, its port and the human side that drives it.
 """
 
+from retarget.rig.bus import RigBus
 from retarget.rig.mapping import RigTargets, rig_targets
 from retarget.rig.plant import RigPlant
 from retarget.rig.replay import RigReplay
@@ -15,6 +16,7 @@ __all__ = [
     "Placement",
     "Rig",
     "RigArm",
+    "RigBus",
     "RigPlant",
     "RigReplay",
     "RigSummary",
