@@ -10,20 +10,22 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 import retarget
 from retarget.bvh import DEMO_CLIP
 from retarget.bvh.motion import Motion
 from retarget.cli._arm import DEFAULT_ARM, collision_model
+from retarget.cli.replay import mapping_overrides
 from retarget.collision import CollisionModel
 from retarget.control.clock import VirtualClock
 from retarget.control.loop import TickRecord
 from retarget.errors import ConfigError
 from retarget.mapping.config import MappingConfig
-from retarget.rig import Rig, RigReplay, RigTargets, load_rig, rig_targets
+from retarget.rig import Rig, RigReplay, RigSummary, RigTargets, load_rig, rig_targets
 
 __all__ = ["add_rig_option", "export_rig", "refuse_arm_options"]
 
@@ -65,46 +67,28 @@ def load_rig_inputs(args: argparse.Namespace) -> RigInputs:
     rig = load_rig(args.rig)
     clip = Path(DEMO_CLIP) if args.clip is None else Path(args.clip)
     first = rig.arms[0].arm
-    overrides = {
-        "forward": args.forward,
-        "up": args.up,
-        "robot_forward": args.robot_forward,
-        "arm_scale": args.arm_scale,
-        "origin": args.origin,
-        "floor": args.floor,
-        "orientation_weight": args.orientation_weight,
-        "cutoff_hz": 0.0 if args.no_filter else args.filter_cutoff,
-    }
-    given = {name: value for name, value in overrides.items() if value is not None}
-    MappingConfig.from_table({}, overrides=given)  # a bad flag is the flag's error, never the arm file's
-    config = MappingConfig.from_table(first.mapping, path=first.source, overrides=given)
+    config = MappingConfig.from_table(first.mapping, path=first.source, overrides=mapping_overrides(args))
     motion = retarget.load_bvh(clip)
     models = {a.name: collision_model(args, a.arm) for a in rig.arms}
     targets = rig_targets(motion, rig, config, collision=models)
     return RigInputs(clip=clip, motion=motion, rig=rig, models=models, targets=targets)
 
 
-def export_rig(args: argparse.Namespace, loop_config: Any) -> int:
-    """``retarget export --rig``: every arm's trajectory in one CSV, ``time_s`` then ``<arm>/<joint>_rad``."""
+def export_rig(args: argparse.Namespace, loop_config: Any, write_trajectory: Any) -> int:
+    """``retarget export --rig``: every arm's trajectory in one CSV, ``time_s`` then ``<arm>/<joint>_rad`` (export's
+    own ``loop_config`` and ``write_trajectory``, passed in: this module is imported by export)."""
     inputs = load_rig_inputs(args)
     config = loop_config(args, inputs.motion)
     clearance = min(m.clearance for m in inputs.models.values())
     replay = RigReplay(inputs.rig, inputs.targets, config=config, models=inputs.models, clearance=clearance,
                        clock=VirtualClock(), clip_name=inputs.clip.name)  # fmt: skip
     q0 = replay.initial_pose()
-    out: IO[str] = sys.stdout if args.output == "-" else open(args.output, "w", newline="", encoding="utf-8")  # noqa: SIM115
-    try:
-        out.write(",".join(["time_s", *(f"{name}_rad" for name in replay.plant.joint_names)]) + "\n")
 
-        def write(r: TickRecord) -> None:
-            out.write(f"{r.time:.6f}," + ",".join(f"{v:.6f}" for v in r.q_cmd) + "\n")
+    def play(on_tick: Callable[[TickRecord], None]) -> RigSummary:
+        replay.on_tick = on_tick
+        return replay.run(None, q_start=q0)
 
-        replay.on_tick = write
-        summary = replay.run(None, q_start=q0)
-        out.flush()
-    finally:
-        if out is not sys.stdout:
-            out.close()
+    summary = write_trajectory(args.output, replay.plant.joint_names, play)
     rig = summary.rig
     print(
         f"retarget: {rig.ticks} ticks of rig {inputs.rig.name} ({rig.duration_s:.2f} s of {inputs.clip.name}) "

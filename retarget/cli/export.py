@@ -15,12 +15,16 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import IO, Any
+from collections.abc import Callable, Sequence
+from typing import IO, Any, TypeVar
 
 from retarget.cli._rig_run import add_rig_option, export_rig
 from retarget.cli.replay import Inputs, add_clip_arguments, add_mapping_arguments, load_inputs, loop_config
 from retarget.control import ControlLoop, TickRecord
 from retarget.control.clock import VirtualClock
+from retarget.control.summary import RunSummary
+
+T = TypeVar("T")
 
 EXAMPLES = """\
 examples:
@@ -63,25 +67,36 @@ def offline_loop(args: argparse.Namespace) -> tuple[Inputs, ControlLoop]:
     return inputs, loop
 
 
-def run(args: argparse.Namespace) -> int:
-    if args.rig is not None:
-        return export_rig(args, loop_config)
-
-    inputs, loop = offline_loop(args)
-    q0 = loop.initial_pose()
-    out: IO[str] = sys.stdout if args.output == "-" else open(args.output, "w", newline="", encoding="utf-8")  # noqa: SIM115
+def write_trajectory(output: str, joint_names: Sequence[str], play: Callable[[Callable[[TickRecord], None]], T]) -> T:
+    """Run ``play(on_tick)`` with an ``on_tick`` that writes each tick's goals as a CSV row to ``output`` (a path,
+    ``-`` = stdout) under the header ``time_s, <joint>_rad ...``; returns what ``play`` returns."""
+    out: IO[str] = sys.stdout if output == "-" else open(output, "w", newline="", encoding="utf-8")  # noqa: SIM115
     try:
-        out.write(",".join(["time_s", *(f"{name}_rad" for name in inputs.arm.joint_names)]) + "\n")
+        out.write(",".join(["time_s", *(f"{name}_rad" for name in joint_names)]) + "\n")
 
         def write(r: TickRecord) -> None:
             out.write(f"{r.time:.6f}," + ",".join(f"{v:.6f}" for v in r.q_cmd) + "\n")
 
-        loop.on_tick = write
-        summary = loop.run(None, q_start=q0)
+        result = play(write)
         out.flush()
     finally:
         if out is not sys.stdout:
             out.close()
+    return result
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.rig is not None:
+        return export_rig(args, loop_config, write_trajectory)
+
+    inputs, loop = offline_loop(args)
+    q0 = loop.initial_pose()
+
+    def play(on_tick: Callable[[TickRecord], None]) -> RunSummary:
+        loop.on_tick = on_tick
+        return loop.run(None, q_start=q0)
+
+    summary = write_trajectory(args.output, inputs.arm.joint_names, play)
     print(
         f"retarget: {summary.ticks} ticks of {inputs.arm.name} ({summary.duration_s:.2f} s of {inputs.clip.name}) "
         f"-> {args.output}; IK {summary.ik_converged_pct:.1f}% converged, "

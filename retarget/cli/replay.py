@@ -159,6 +159,17 @@ def load_inputs(args: argparse.Namespace) -> Inputs:
     else:
         clip = Path(args.clip)
     arm = load_arm_option(args)
+    config = MappingConfig.from_table(arm.mapping, path=arm.source, overrides=mapping_overrides(args))
+    motion = retarget.load_bvh(clip)
+    collision = collision_model(args, arm)
+    targets = retarget_targets(motion, arm, config, collision=collision)
+    return Inputs(clip=clip, motion=motion, arm=arm, targets=targets, collision=collision)
+
+
+def mapping_overrides(args: argparse.Namespace) -> dict[str, Any]:
+    """The mapping flags that were given (``--side``, ``--arm-scale``, ``--filter-cutoff``, ...), as mapping fields,
+    checked alone first: a bad one is the flag's error (``mapping.floor`` with no file, which the CLI prints as
+    ``--floor``), never the arm file's."""
     overrides = {
         "side": args.side,
         "forward": args.forward,
@@ -170,16 +181,6 @@ def load_inputs(args: argparse.Namespace) -> Inputs:
         "orientation_weight": args.orientation_weight,
         "cutoff_hz": 0.0 if args.no_filter else args.filter_cutoff,
     }
-    config = MappingConfig.from_table(arm.mapping, path=arm.source, overrides=_checked_overrides(overrides))
-    motion = retarget.load_bvh(clip)
-    collision = collision_model(args, arm)
-    targets = retarget_targets(motion, arm, config, collision=collision)
-    return Inputs(clip=clip, motion=motion, arm=arm, targets=targets, collision=collision)
-
-
-def _checked_overrides(overrides: dict[str, Any]) -> dict[str, Any]:
-    """The flags that were given, checked alone first: a bad one is the flag's error (``mapping.floor`` with no
-    file, which the CLI prints as ``--floor``), never the arm file's."""
     given = {name: value for name, value in overrides.items() if value is not None}
     MappingConfig.from_table({}, overrides=given)
     return given
