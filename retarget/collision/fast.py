@@ -78,6 +78,11 @@ class OnePose:
         box_centre = [pts.add(f, c)[0] for f, c in zip(model._box_frame, model._box_c, strict=True)]
         sph_pt = [pts.add(BASE_FRAME, c)[0] for c in model._sph_c]
         kb_corner = [pts.add(BASE_FRAME, c + _SIGNS * h) for c, h in zip(model._kb_c, model._kb_h, strict=True)]
+        # each joint's origin and the tip of its unit axis (fixed in its child frame): for slopes (joint_points)
+        axes = model._K[:, [2, 0, 1], [1, 2, 0]]  # (n, 3): the axes back from their cross-product matrices
+        axes = axes / np.linalg.norm(axes, axis=1, keepdims=True)
+        self._cap_pts = cap_pts
+        self._joint_pts = [pts.add(j + 1, np.array([np.zeros(3), axes[j]])) for j in range(model._n)]
         # (p, q, p2, q2, offset, pair) segment pairs; (p, q, box frame, centre, half, corners, offset, pair) boxes
         seg: list[tuple[Any, ...]] = []
         box: list[tuple[Any, ...]] = []
@@ -202,6 +207,8 @@ class OnePose:
             self._cand = np.zeros((3, len(box)))  # slab parameters tried: 0, 1, the middle of the slab interval
             self._cand[1] = 1.0
         self._bounds(seg, box, row0, flat)
+        self._joint_idx = flat(np.array(self._joint_pts, dtype=np.intp).reshape(-1, 2), 0)  # (3, n, 2)
+        self._cap_idx = flat(np.array(self._cap_pts, dtype=np.intp).reshape(-1, 2), 0)  # (3, n_caps, 2)
         self._tab_idx = flat(np.array([t[0] for t in table], dtype=np.intp).reshape(-1, 8).T, 0)[2]  # (8, n_table)
         self._tab_r = np.array([t[1] for t in table], dtype=np.float64)
         slots = [s[5] for s in seg] + [b[7] for b in box] + [t[2] for t in table]
@@ -229,6 +236,16 @@ class OnePose:
         self._reach_for, self._reach_sq = math.nan, self._lb_off
         #: below this least clearance, a box pair whose segment touches the box's bounds may be the least
         self._box_floor = float(-np.min(self._lb_off[len(seg) :], initial=math.inf))
+
+    def joint_points(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """For pose ``q`` (rad): each joint's origin ``(3, n)`` and unit axis ``(3, n)``, and each capsule's two
+        ends ``(3, n_caps, 2)``, base frame, metres (from the shared buffers: one forward pass unless they hold
+        ``q`` already)."""
+        if self.pose != q.tobytes():
+            self._frames_and_points(q)
+        joints = self._buf.take(self._joint_idx)  # (3, n, 2)
+        origin = joints[:, :, 0]
+        return origin, joints[:, :, 1] - origin, self._buf.take(self._cap_idx)
 
     # -- one pose, bounded ---------------------------------------------------------------------------------------
     def _gaps(self) -> tuple[np.ndarray, np.ndarray]:

@@ -77,8 +77,9 @@ class GoalCheck:
     """Checks each tick's goal against ``model`` (see the module docstring), starting from the pose ``q_start``
     (rad); ``clearance`` is the min clearance (metres) of the last segment written, or a lower bound of it (at
     first: of ``q_start``).  Most ticks need no query or one of a single pose: the segment's clearance is bounded
-    from its ends' (:class:`~retarget.ik.bound.ClearanceBound`); only near a contact is it sampled
-    (``CollisionModel.segment_clear``)."""
+    from its ends' (:class:`~retarget.ik.bound.ClearanceBound`; after a query, a table contact by its ends' height
+    slopes too: ``ClearanceBound.segment_low``); a goal whose own query is within the clearance is refused at
+    once, as sampling would; only near a contact is the segment sampled (``CollisionModel.segment_clear``)."""
 
     __slots__ = ("model", "clearance", "bound", "_segment_clear", "_limit", "_reach", "_at_cmd", "_cmd_state", "_memo")
 
@@ -128,9 +129,14 @@ class GoalCheck:
         low = bound.segment_bound(q_from, q_to, at0, at1)
         if low < limit:
             end = np.array(q_to)
-            bound.note(q_to, self.model.pair_bounds(end, self._reach))  # one pose: cheap; exact near the clearance
+            d = self.model.pair_bounds(end, self._reach)  # one pose: cheap; exact near the clearance
+            bound.note(q_to, d)
+            if d.size and float(d.min()) < limit:  # the goal itself is not clear: no segment to sample
+                return False
             at1 = bound.rows_at_note()  # (and the next goals near it need no query)
             low = bound.segment_bound(q_from, q_to, at0, at1)
+            if low < limit:  # the new note alone, the table rows by their ends' height slopes
+                low = max(low, bound.segment_low(q_from, q_to))
             if low < limit:  # near a contact: sample the segment
                 check = self._segment_clear(np.array(q_from), end)
                 if not check.clear:

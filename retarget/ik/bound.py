@@ -18,10 +18,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from retarget.arm.kinematics import rpy_matrix
+
 if TYPE_CHECKING:
     from retarget.collision import CollisionModel
+    from retarget.collision.pieces import Pieces
 
-__all__ = ["HORIZON", "ClearanceBound", "shared_bound"]
+__all__ = ["HORIZON", "ClearanceBound", "TableSlopes", "shared_bound"]
 
 #: metres beyond the clearance within which a query measures a pair exactly (farther ones keep a cheap lower bound
 #: of at least this: ``CollisionModel.pair_bounds``)
@@ -62,7 +65,7 @@ class ClearanceBound:
     """
 
     __slots__ = ("_pieces", "_levers", "_state", "_previous", "_last", "_move", "_fall", "_clearance", "_scale",
-                 "_inv_sigma", "_rows", "_screen", "_screen_previous")  # fmt: skip
+                 "_inv_sigma", "_rows", "_screen", "_screen_previous", "_slopes")  # fmt: skip
 
     def __init__(self, model: CollisionModel):
         from retarget.collision.pieces import Pieces  # (the collision package never imports this one)
@@ -85,6 +88,7 @@ class ClearanceBound:
         self._rows: list[list[float]] = self._levers.tolist()
         self._screen: Screen | None = None
         self._screen_previous: Screen | None = None
+        self._slopes = TableSlopes(model, self._pieces, self._levers)  #: the table rows' second bound
 
     @property
     def previous_state(self) -> State | None:
@@ -223,6 +227,20 @@ class ClearanceBound:
         fall: np.ndarray = d - self._levers @ np.abs(np.asarray(q, dtype=np.float64) - ref)
         return fall
 
+    def segment_low(self, q0: Sequence[float] | np.ndarray, q1: Sequence[float] | np.ndarray) -> float:
+        """A lower bound of the min clearance (metres) over the straight joint-space segment ``q0`` -> ``q1`` (rad;
+        ``q0 == q1``: one pose) from the last note alone, sharper than :meth:`quick` where a moving capsule's
+        table distance decides: each row its distance less its greatest fall at either end (a row's bound is
+        concave along the segment), and when only table rows fall below the clearance, each of those at least
+        the :class:`TableSlopes` bound (its ends' heights follow their slopes: shoulder and elbow turns that keep
+        the tool's height cancel out).  A few numpy calls; ``-inf`` before the first note, ``inf`` without pairs."""
+        state = self._state
+        if not self._fall.size:
+            return math.inf
+        if state is None:
+            return -math.inf
+        return self._slopes.segment_low(state, q0, q1, self._clearance)
+
     def segment_bound(self, q0: Sequence[float], q1: Sequence[float], at0: np.ndarray, at1: np.ndarray) -> float:
         """A lower bound of the min clearance over the straight joint-space segment ``q0`` -> ``q1``, from lower
         bounds ``at0``, ``at1`` ``(n_rows,)`` of the row distances at its ends: each row's distance is within
@@ -230,6 +248,103 @@ class ClearanceBound:
         fall = self._levers @ np.abs(np.asarray(q1, dtype=np.float64) - np.asarray(q0, dtype=np.float64))
         low = np.minimum(np.minimum(at0, at1), 0.5 * (at0 + at1 - fall))
         return float(low.min()) if low.size else math.inf
+
+
+class TableSlopes:
+    """A second lower bound of each moving capsule's table distance near a note: from its ends' heights and
+    slopes, not the sum of its levers' falls.
+
+    A point ``p`` on frame ``f`` has height ``z(q)``; its slope along joint ``j < f`` is ``(a_j x (p - o_j))_z``
+    (axis ``a_j`` through ``o_j``), and its second derivatives are ``(a_i x (a_j x (p - o_j)))_z`` (``i <= j``), at
+    most ``t_i rho_j``: ``rho_j`` the point's distance from axis ``j`` (at most the row's lever ``L_j``, bounded
+    whatever the pose) and ``t_i`` the horizontal part of ``a_i`` (1 but for the first joint, whose axis is fixed
+    in the base frame: 0 for a turntable).  So along the straight segment from the note's pose ``q_ref`` to ``q``,
+    ``z(q) >= z(q_ref) + g . dq - Q(|dq|) / 2`` with ``Q(m) = sum_j L_j m_j (m_j + 2 sum_{i<j} t_i m_i)`` (Taylor
+    with the integral remainder).  Over a segment ``q0 -> q1`` the linear term is least at an end and ``Q`` is at
+    most ``Q(max(|dq0|, |dq1|))``; the capsule's table distance is its lower end's height less its radius.  Where
+    shoulder and elbow turn together and keep the ends' heights, the levers' sum ``L . |dq|`` counts both turns
+    in full; this bound counts what is left of them, plus a second-order term.
+
+    The slopes are computed once per note, when first needed, from the model's one-pose buffers (each joint's
+    origin and axis ride along with the geometry's points: no forward pass when they hold the note's pose).
+    """
+
+    def __init__(self, model: CollisionModel, pieces: Pieces, levers: np.ndarray):
+        self.model = model
+        rows: list[int] = []
+        caps: list[int] = []
+        if model.world.table:
+            first = len(model._cc) + len(model._cb)
+            whole = pieces._whole.tolist()
+            for i, cap in enumerate(model._mcap.tolist()):
+                k = first + i
+                if k in whole and model.pair_names[k].endswith("/table"):
+                    rows.append(whole.index(k))
+                    caps.append(cap)
+        self.rows = np.array(rows, dtype=np.intp)  #: ``(m,)`` the bound's rows of capsules against the table
+        self._caps = np.array(caps, dtype=np.intp)
+        self._frame = model._cap_frame[self._caps]  # (m,)
+        self._radius = model._cap_r[self._caps]  # (m,)
+        self._levers = levers[self.rows]  # (m, n)
+        self._all = levers  # (n_rows, n)
+        self._other = np.setdiff1d(np.arange(len(levers)), self.rows)  #: the rows that are not table rows
+        arm = model.arm
+        axis0 = rpy_matrix(arm.joints[0].origin_rpy) @ np.asarray(arm.joints[0].axis, dtype=np.float64)
+        tilt = np.ones(arm.n_joints)
+        tilt[0] = min(1.0, math.hypot(float(axis0[0]), float(axis0[1])) / float(np.linalg.norm(axis0)))
+        self._tilt = tilt  #: ``t_i``: the horizontal part of each joint's axis (1 but for the first)
+        n = arm.n_joints
+        #: per end, which joints move it (``j < frame``): ``(2m, n)``
+        self._moves = (np.arange(n)[None, :] < np.repeat(self._frame, 2)[:, None]).astype(np.float64)
+        self._state: object = None
+        self._slope = np.zeros((2 * len(rows), n))  #: ``(2m, n)`` each end's height slope per joint, m/rad
+        self._height = np.zeros(2 * len(rows))  #: ``(2m,)`` each end's height at the note, metres
+
+    def _at(self, state: object, ref: np.ndarray) -> None:
+        """The ends' heights and slopes at the note's pose ``ref`` (once per note)."""
+        if self._state is state:
+            return
+        origin, axis, caps = self.model._one.joint_points(ref)  # (3, n), (3, n), (3, n_caps, 2)
+        p = caps[:, self._caps].reshape(3, -1)  # (3, 2m): each table capsule's two ends
+        dx = p[0][:, None] - origin[0][None, :]  # (2m, n)
+        dy = p[1][:, None] - origin[1][None, :]
+        self._slope = (axis[0][None, :] * dy - axis[1][None, :] * dx) * self._moves
+        self._height = p[2].copy()
+        self._state = state
+
+    def segment_low(
+        self, state: State, q0: Sequence[float] | np.ndarray, q1: Sequence[float] | np.ndarray, clearance: float
+    ) -> float:
+        """:meth:`ClearanceBound.segment_low` from the note ``state = (ref, rows)``: the rows' linear bound over the
+        segment ``q0 -> q1`` (rad), and when the other rows keep ``clearance`` but the table rows do not, the table
+        rows raised to this bound where it is higher (metres)."""
+        ref, d = state
+        da = np.subtract(q0, ref)
+        db = np.subtract(q1, ref)
+        ma, mb = np.abs(da), np.abs(db)
+        low: np.ndarray = d - np.maximum(self._all @ ma, self._all @ mb)
+        rows = self.rows
+        if not rows.size:
+            return float(low.min())
+        other = float(low[self._other].min(initial=math.inf))
+        table = float(low[rows].min())
+        if other < clearance or table >= clearance:
+            return min(other, table)
+        raised = np.maximum(low[rows], self.heights(state, da, db))
+        return min(other, float(raised.min()))
+
+    def heights(self, state: State, d0: np.ndarray, d1: np.ndarray) -> np.ndarray:
+        """This bound of each table row ``(m,)`` metres (as :attr:`rows`) over the segment from ``ref + d0`` to
+        ``ref + d1`` (rad) about the note ``state = (ref, rows)``."""
+        self._at(state, state[0])
+        m = np.maximum(np.abs(d0), np.abs(d1))
+        before = np.cumsum(self._tilt * m)
+        before[1:] = before[:-1].copy()
+        before[0] = 0.0  # sum_{i<j} t_i m_i
+        quad = 0.5 * (self._levers @ (m * (m + 2.0 * before)))  # (m,)
+        ends = self._height + np.minimum(self._slope @ d0, self._slope @ d1)  # (2m,) each end's least height
+        out: np.ndarray = np.minimum(ends[0::2], ends[1::2]) - self._radius - quad
+        return out
 
 
 _SHARED: weakref.WeakKeyDictionary[CollisionModel, ClearanceBound] = weakref.WeakKeyDictionary()

@@ -24,7 +24,9 @@ starts the re-solve from the first clear pose of (seed, home, rest); when none i
 ``blocked``, and the caller (the control loop) refuses to send it.  Orientation targets re-solve a sweep at a
 time: each sweep's step is bisected as a whole (a straight line in joint space).  A re-solve that ended at its
 own seed (or got no closer) is returned again, without the work, for the same target from the pose it returned
-(a held target the arm is stuck against, tick after tick: the same answer).
+(a held target the arm is stuck against, tick after tick: the same answer), and likewise for a position target
+within ``HELD`` tolerances of it from a seed within ``HELD_STEP`` of that pose (a target that drifts by less
+than the tolerance behind an obstacle: the re-solve would get no closer; its error is the new target's).
 
 Arrays: ``q`` ``(n_joints,)`` float64 radians; targets ``(3,)`` metres, base frame.
 """
@@ -76,6 +78,8 @@ _EPS2 = 1e-16  #: as in ccd: below this the joint cannot move the tool toward th
 _MAX_CHECKS = 60  #: a blocked re-solve stops after this many checks: a tick's budget, not a search
 _BACK_OFF_SWEEPS = 8  #: the sweep budget of each free solve of the back-off (warm from the seed: a few do)
 _AGAINST = 1e-3  #: metres: a start within this of the clearance is against an obstacle (no back-off, see there)
+HELD = 0.25  #: tolerances: a position target this near the one a re-solve got stuck on gets its answer again
+HELD_STEP = 1e-3  #: radians: and from a seed this near (per joint) the pose it returned
 _MAX_SWEEPS = 4  #: and after this many sweeps (it slides along an obstacle; the next tick goes on from there)
 
 
@@ -154,13 +158,15 @@ class CollisionGuard:
         budget: int,
     ) -> IKResult:
         """The shortened re-solve from ``seed`` (see the module docstring).  A blocked re-solve that got the tool
-        no closer than its seed was (by 1% of the tolerance) is kept: the next call for the same target from the
-        pose it returned gets that pose back at once (a held target the arm is stuck against, tick after tick:
-        the same answer, and no creeping along the obstacle)."""
+        no closer than its seed was (by 1% of the tolerance) is kept: the next call for the same target (a position
+        target: within ``HELD`` tolerances of it) from the pose it returned (within ``HELD_STEP`` rad per joint)
+        gets that pose back at once (a held target the arm is stuck against, tick after tick: the same answer,
+        and no creeping along the obstacle)."""
         fixed = self._fixed
-        if fixed is not None and fixed[0] == (target, seed, rotation, tol, budget):
+        if fixed is not None and self._held(fixed[0], target, seed, rotation, tol, budget):
             r = fixed[1]
-            return IKResult(r.q.copy(), r.error, r.iterations, r.converged, r.orientation_error, r.restarts,
+            err = r.error if target == fixed[0][0] else math.dist(self.solver.tool_point(r.q), target)
+            return IKResult(r.q.copy(), err, r.iterations, r.converged, r.orientation_error, r.restarts,
                             blocked=r.blocked, clearance=r.clearance)  # fmt: skip
         result = self._resolve(target, seed, rotation, tol, budget)
         q = result.q.tolist()
@@ -171,6 +177,26 @@ class CollisionGuard:
         )
         self._fixed = ((target, q, rotation, tol, budget), result) if stuck else None
         return result
+
+    @staticmethod
+    def _held(
+        key: tuple[Any, ...],
+        target: tuple[float, float, float],
+        seed: list[float],
+        rotation: tuple[tuple[float, ...], ...] | None,
+        tol: float,
+        budget: int,
+    ) -> bool:
+        """Whether a call is the stuck re-solve ``key`` again: from the pose it returned, with the same settings,
+        for its target (a position target: one within ``HELD`` tolerances of it)."""
+        stuck_target, q, stuck_rotation, stuck_tol, stuck_budget = key
+        if rotation != stuck_rotation or tol != stuck_tol or budget != stuck_budget:
+            return False
+        if seed != q and max(abs(a - b) for a, b in zip(seed, q, strict=True)) > HELD_STEP:
+            return False
+        if rotation is not None:
+            return bool(target == stuck_target)
+        return math.dist(target, stuck_target) <= HELD * tol
 
     def _resolve(
         self,

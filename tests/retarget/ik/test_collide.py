@@ -116,6 +116,40 @@ def test_a_held_blocked_target_settles_on_one_pose(wx, target):
     assert np.all(brute_force_min_clearances(wx, poses) >= model.clearance)
 
 
+@pytest.mark.parametrize(
+    ("nudge", "seed_nudge", "held"),
+    [(0.0, 0.0, True), (0.2e-3, 0.0, True), (0.2e-3, 0.5e-3, True), (2.5e-3, 0.0, False), (0.0, 5e-3, False)],
+    ids=["same", "target-within-tolerance", "seed-within-step", "target-beyond", "seed-beyond"],
+)
+def test_a_stuck_blocked_target_is_held_for_targets_within_its_tolerance(wx, monkeypatch, nudge, seed_nudge, held):
+    """Once a blocked re-solve gets no closer, a call from (within HELD_STEP of) the pose it returned, for a target
+    within HELD tolerances of the one it got stuck on, gets that pose back without a query (blocked, clear, its
+    error to the new target); a target or a seed farther off is solved again."""
+    from retarget.ik import collide
+
+    model = CollisionModel.for_arm(wx)
+    solver = CCDSolver(wx, collision=model)
+    target, q = np.array([0.3, 0.0, -0.05]), wx.home
+    for _ in range(4):  # settles on one pose (see the test above)
+        q = solver.solve(target, q).q
+    assert solver._guard._fixed is not None
+    assert nudge <= collide.HELD * solver.tolerance or not held
+    queries = []
+    real = model.min_clearance
+    monkeypatch.setattr(model, "min_clearance", lambda p: queries.append(1) or real(p))
+    moved = target + [nudge, 0.0, 0.0]
+    seed = q + seed_nudge
+    result = solver.solve(moved, seed)
+    assert result.blocked and not result.converged
+    if held:
+        assert not queries
+        np.testing.assert_array_equal(result.q, q)
+        assert result.error == pytest.approx(float(np.linalg.norm(tool(wx, q) - moved)), abs=1e-12)
+    else:
+        assert queries
+    assert brute_force_min_clearances(wx, result.q[None])[0] >= model.clearance
+
+
 def test_a_seed_trapped_against_an_obstacle_gives_way_to_the_free_solution_from_home(wx):
     """A pose a random walk left the arm in (turned to the back and folded down, after targets below the table):
     the warm solve toward a reachable target collides and shortened steps cannot get out, so the free solution
