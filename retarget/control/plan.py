@@ -196,14 +196,21 @@ def solve_and_plan(
     the last solution (the first from ``q_start`` ``(n_joints,)`` rad), then :func:`plan_path` of the solutions from
     ``q_start`` at rest (limits as there, per slot)."""
     t0 = time.perf_counter()
+    results = solve_path(solver, positions, rotations, q_start)
+    qs = np.array([r.q for r in results], dtype=np.float64).reshape(len(results), len(q_start))
+    planned = plan_path(qs, q_start, lower=lower, upper=upper, max_step=max_step, max_accel=max_accel,
+                        iterations=iterations)  # fmt: skip
+    seconds = time.perf_counter() - t0
+    return PathPlan(planned, results, np.asarray(positions), tuple(clamped.tolist()), seconds)
+
+
+def solve_path(solver: _Solver, positions: Array, rotations: Array | None, q_start: Array) -> tuple[IKResult, ...]:
+    """IK of every target ``positions`` ``(n, 3)`` m (``rotations`` ``(n, 3, 3)`` or None), each warm-started from
+    the last solution, the first from ``q_start`` ``(n_joints,)`` rad: the unplanned joint path, one result a tick."""
     solve, q = solver.solve, np.asarray(q_start, dtype=np.float64)
     results = []
     for i in range(len(positions)):
         result = solve(positions[i], q, None if rotations is None else rotations[i])
         results.append(result)
         q = result.q
-    qs = np.array([r.q for r in results], dtype=np.float64).reshape(len(results), len(q_start))
-    planned = plan_path(qs, q_start, lower=lower, upper=upper, max_step=max_step, max_accel=max_accel,
-                        iterations=iterations)  # fmt: skip
-    seconds = time.perf_counter() - t0
-    return PathPlan(planned, tuple(results), np.asarray(positions), tuple(clamped.tolist()), seconds)
+    return tuple(results)

@@ -57,6 +57,7 @@ import math
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -66,7 +67,7 @@ from retarget.control.bus import Bus, connected
 from retarget.control.clock import Clock, MonotonicClock
 from retarget.control.loop import LoopConfig, TickRecord, run_ticks
 from retarget.control.plan import PathPlan, solve_and_plan
-from retarget.control.safety import Route, require_route
+from retarget.control.safety import Route, RouteModel, require_route
 from retarget.control.source import JointGoal, TargetSource, TickGoal, TickSolver, TickTarget
 from retarget.control.stats import TickStats
 from retarget.control.summary import RunSummary
@@ -410,7 +411,8 @@ class ClipSource(TargetSource):
         loop, cfg = self.loop, self.loop.config
         speed = np.minimum(cfg.lead_in_speed, cfg.velocity_scale * loop.arm.max_velocity)
         positions, _, _ = loop.sample(0, 1)
-        self.lead_in = plan_lead_in(loop.arm, cfg, q_start, self.lead_in_to, speed=speed, target=positions[0])
+        self.lead_in = plan_lead_in(loop.arm, q_start, self.lead_in_to, speed=speed, rate=cfg.rate,
+                                    target=positions[0], collision=cfg.collision)  # fmt: skip
         if cfg.max_ticks is not None and self.lead_in.n_slots > cfg.max_ticks:  # the run stays as long as asked
             log.warning(
                 "lead-in: cut to max_ticks = %d of its %d ticks; the clip starts from where it got to",
@@ -460,28 +462,44 @@ class ClipSource(TargetSource):
         return TickTarget(self._positions[j], None if rotations is None else rotations[j], self._clamped[j])
 
 
+class _Poses(Protocol):
+    """What a lead-in needs of the joints it moves (an :class:`~retarget.arm.model.Arm`, a rig's plant): rad,
+    rad/s^2."""
+
+    @property
+    def home(self) -> npt.NDArray[np.float64]: ...
+
+    @property
+    def rest(self) -> npt.NDArray[np.float64]: ...
+
+    @property
+    def max_acceleration(self) -> npt.NDArray[np.float64]: ...
+
+
 def plan_lead_in(
-    arm: Arm,
-    config: LoopConfig,
+    arm: _Poses,
     q_from: npt.NDArray[np.float64],
     q_to: npt.NDArray[np.float64],
     *,
     speed: npt.NDArray[np.float64],
+    rate: float,
     target: npt.NDArray[np.float64],
+    collision: RouteModel | None,
 ) -> LeadIn | Route:
-    """The lead-in from ``q_from`` to ``q_to`` (rad): one :class:`LeadIn`, or with ``config.collision`` the legs
-    of its safe route (straight, else through home or rest; ConfigError ``collision`` when there is none)."""
+    """The lead-in from ``q_from`` to ``q_to`` (rad) at ``rate`` ticks per second: one :class:`LeadIn`, or with a
+    ``collision`` model the legs of its safe route (straight, else through home or rest; ConfigError ``collision``
+    when there is none)."""
     accel = arm.max_acceleration
-    if config.collision is None:
-        return LeadIn.plan(q_from, q_to, speed=speed, rate=config.rate, target=target, accel=accel)
+    if collision is None:
+        return LeadIn.plan(q_from, q_to, speed=speed, rate=rate, target=target, accel=accel)
     waypoints = (arm.home, arm.rest)
-    poses = require_route(config.collision, q_from, q_to, waypoints=waypoints, what="lead-in to the clip's first pose")
+    poses = require_route(collision, q_from, q_to, waypoints=waypoints, what="lead-in to the clip's first pose")
     if len(poses) == 1:
-        return LeadIn.plan(q_from, q_to, speed=speed, rate=config.rate, target=target, accel=accel)
+        return LeadIn.plan(q_from, q_to, speed=speed, rate=rate, target=target, accel=accel)
     log.info("lead-in: the straight path collides; going through a safe waypoint")
     legs, start = [], q_from
     for pose in poses:
-        legs.append(LeadIn.plan(start, pose, speed=speed, rate=config.rate, target=target, accel=accel))
+        legs.append(LeadIn.plan(start, pose, speed=speed, rate=rate, target=target, accel=accel))
         start = pose
     return Route(tuple(legs))
 

@@ -28,7 +28,23 @@ from retarget.ik.bound import HORIZON, shared_bound
 if TYPE_CHECKING:
     from retarget.collision import CollisionModel
 
-__all__ = ["GoalCheck", "Leg", "Route", "plan_route", "require_route"]
+__all__ = ["GoalCheck", "Leg", "Route", "RouteModel", "plan_route", "require_route"]
+
+
+class _Segment(Protocol):
+    @property
+    def clear(self) -> bool: ...
+
+
+class RouteModel(Protocol):
+    """What routing a joint-space move needs of a collision model (:class:`~retarget.collision.CollisionModel` is
+    one; a rig's arms together are another, ``retarget.rig.check.RigRoutes``): poses ``(n_joints,)`` rad."""
+
+    def is_clear(self, q: npt.NDArray[np.float64]) -> bool: ...
+
+    def segment_clear(self, q0: npt.NDArray[np.float64], q1: npt.NDArray[np.float64]) -> _Segment: ...
+
+    def worst_pair(self, q: npt.NDArray[np.float64]) -> tuple[str, float]: ...
 
 
 class Leg(Protocol):
@@ -148,7 +164,7 @@ class GoalCheck:
 
 
 def plan_route(
-    model: CollisionModel,
+    model: RouteModel,
     q_from: npt.NDArray[np.float64],
     q_to: npt.NDArray[np.float64],
     *,
@@ -176,7 +192,7 @@ def plan_route(
 
 
 def require_route(
-    model: CollisionModel,
+    model: RouteModel,
     q_from: npt.NDArray[np.float64],
     q_to: npt.NDArray[np.float64],
     *,

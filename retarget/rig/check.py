@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -31,7 +31,7 @@ from retarget.rig.plant import RigPlant
 if TYPE_CHECKING:
     from retarget.collision import CollisionModel
 
-__all__ = ["RigGoalCheck"]
+__all__ = ["RigGoalCheck", "RigRoutes"]
 
 
 class RigGoalCheck:
@@ -119,3 +119,42 @@ class RigGoalCheck:
             s = np.linspace(0.0, 1.0, n)[:, None]
             low = min(float(self.between.min_clearance(self.plant.split(a + s * (b - a))).min()), d0, d1)
         return low
+
+
+class _Segment(NamedTuple):
+    clear: bool
+
+
+class RigRoutes:
+    """A rig's arms as one model for routing a joint-space move of the plant's vector (a lead-in, through
+    :func:`~retarget.control.safety.require_route`): a pose is clear when each arm is clear of itself and its world
+    and the arms of each other; a straight move when :class:`RigGoalCheck` allows it from its start.
+
+    >>> from retarget.collision import CollisionModel
+    >>> from retarget.rig import load_rig
+    >>> rig = load_rig("wx250s-pair")
+    >>> plant = RigPlant.of(rig)
+    >>> routes = RigRoutes(plant, {a.name: CollisionModel.for_arm(a.arm) for a in rig.arms}, RigClearance(rig))
+    >>> routes.is_clear(plant.home), routes.segment_clear(plant.rest, plant.home).clear
+    (True, True)
+    """
+
+    def __init__(self, plant: RigPlant, models: Mapping[str, CollisionModel], between: RigClearance):
+        self.plant, self.models, self.between = plant, dict(models), between
+
+    def is_clear(self, q: npt.NDArray[np.float64]) -> bool:
+        parts = self.plant.split(q)
+        return all(self.models[name].is_clear(part) for name, part in parts.items()) and self.between.is_clear(parts)
+
+    def segment_clear(self, q0: npt.NDArray[np.float64], q1: npt.NDArray[np.float64]) -> _Segment:
+        check = RigGoalCheck(self.plant, self.models, self.between, np.asarray(q0, dtype=np.float64))
+        return _Segment(check.allows(np.asarray(q0).tolist(), np.asarray(q1).tolist()))
+
+    def worst_pair(self, q: npt.NDArray[np.float64]) -> tuple[str, float]:
+        """The nearest pair of ``q`` (an arm's own, ``"left:<pair>"``, or arm against arm) and its clearance, m."""
+        parts = self.plant.split(q)
+        pairs = [self.between.worst_pair(parts)]
+        for name, part in parts.items():
+            pair, metres = self.models[name].worst_pair(part)
+            pairs.append((f"{name}:{pair}", metres))
+        return min(pairs, key=lambda pair: pair[1])

@@ -11,7 +11,8 @@ collision-aware :class:`~retarget.ik.CCDSolver`, warm-started from its previous 
 ahead within the limits (``look_ahead``, as one arm's clip is).  The ticks then steer to those poses
 (:class:`~retarget.control.source.JointGoal`); the loop's step limit and the rig check stay the last word before
 each write.  On a bus a lead-in first moves every arm from where it is to the clip's first
-poses (straight in joint space when that path is clear, else through the arms' homes, else refused).
+poses (straight in joint space when that path is clear, else through the arms' homes or rests, else refused:
+:func:`~retarget.control.replay.plan_lead_in` with :class:`~retarget.rig.check.RigRoutes`).
 
 Each tick's record is one for the rig (targets ``(3 n_arms,)`` metres, every arm's base frame in turn, joints the
 plant's); :meth:`RigReplay.arm_record` gives one arm's part of it, with that arm's IK outcome.
@@ -20,7 +21,6 @@ plant's); :meth:`RigReplay.arm_record` gives one arm's part of it, with that arm
 from __future__ import annotations
 
 import logging
-import math
 import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
@@ -32,14 +32,14 @@ import numpy.typing as npt
 from retarget.control.bus import Bus
 from retarget.control.clock import Clock, MonotonicClock
 from retarget.control.loop import LoopConfig, TickRecord, run_ticks
-from retarget.control.plan import plan_path
-from retarget.control.replay import ControlLoop, LeadIn
+from retarget.control.plan import plan_path, solve_path
+from retarget.control.replay import ControlLoop, LeadIn, plan_lead_in
 from retarget.control.safety import Route
 from retarget.control.source import JointGoal, TargetSource, TickGoal
 from retarget.control.stats import TickStats
 from retarget.control.tracking import Trajectory, following
-from retarget.errors import BusError, ConfigError
-from retarget.rig.check import RigGoalCheck
+from retarget.errors import BusError
+from retarget.rig.check import RigGoalCheck, RigRoutes
 from retarget.rig.clearance import RigClearance
 from retarget.rig.mapping import RigTargets
 from retarget.rig.plant import RigPlant
@@ -73,17 +73,12 @@ class ArmPath:
         """IK for every slot of ``loop``'s pass, warm-started from the previous solution (the first from
         :meth:`~retarget.control.replay.ControlLoop.initial_pose`)."""
         positions, _, _ = loop.sample(0, loop.n_slots)
-        q = loop.initial_pose()
-        n = len(positions)
-        out = np.empty((n, q.size))
-        error, sweeps = np.empty(n), np.empty(n, dtype=np.int64)
-        converged, blocked = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
-        solve = loop.solver.solve
-        for k in range(n):
-            result = solve(positions[k], q, None)
-            q = result.q
-            out[k], error[k], sweeps[k] = q, result.error, result.iterations
-            converged[k], blocked[k] = result.converged, result.blocked
+        results = solve_path(loop.solver, positions, None, loop.initial_pose())
+        out = np.array([r.q for r in results], dtype=np.float64)
+        error = np.array([r.error for r in results])
+        sweeps = np.array([r.iterations for r in results], dtype=np.int64)
+        converged = np.array([r.converged for r in results], dtype=bool)
+        blocked = np.array([r.blocked for r in results], dtype=bool)
         return cls(out, positions, error, sweeps, converged, blocked)
 
 
@@ -255,7 +250,9 @@ class _RigSource(TargetSource):
         if not self.with_lead_in:
             return 0
         speed = np.minimum(cfg.lead_in_speed, cfg.velocity_scale * replay.plant.max_velocity)
-        self.lead_in = _lead_in(replay, q_start, self.q[0], speed=speed, target=self.targets[0])
+        routes = None if replay.models is None else RigRoutes(replay.plant, replay.models, replay.between)
+        self.lead_in = plan_lead_in(replay.plant, q_start, self.q[0], speed=speed, rate=cfg.rate,
+                                    target=self.targets[0], collision=routes)  # fmt: skip
         if cfg.max_ticks is not None and self.lead_in.n_slots > cfg.max_ticks:
             self.lead_in = self.lead_in.truncated(cfg.max_ticks)
         return -self.lead_in.n_slots
@@ -276,42 +273,6 @@ class _RigSource(TargetSource):
             return self.lead_in.goal(tick)
         i = tick % self.n_slots if self.looping else tick
         return JointGoal(self.q[i], self.targets[i])
-
-
-def _lead_in(replay: RigReplay, q_from: Array, q_to: Array, *, speed: Array, target: Array) -> LeadIn | Route:
-    """The lead-in from ``q_from`` to ``q_to`` (the plant's, rad): straight when the rig check allows the whole
-    path, else through every arm's home, else a ConfigError (key ``collision``)."""
-    cfg, accel = replay.config, replay.plant.max_acceleration
-
-    def leg(a: Array, b: Array) -> LeadIn:
-        return LeadIn.plan(a, b, speed=speed, rate=cfg.rate, target=target, accel=accel)
-
-    if replay.models is None or _clear(replay, q_from, q_to):
-        return leg(q_from, q_to)
-    home = replay.plant.home
-    if _clear(replay, q_from, home) and _clear(replay, home, q_to):
-        log.info("lead-in: the straight path collides; going through the arms' homes")
-        return Route((leg(q_from, home), leg(home, q_to)))
-    raise ConfigError(
-        "Expected a collision-free lead-in to the clip's first poses, but the straight joint-space path collides "
-        "and going through the arms' homes does not avoid it",
-        key="collision",
-    )
-
-
-def _clear(replay: RigReplay, a: Array, b: Array) -> bool:
-    """Whether the straight move ``a`` -> ``b`` (the plant's, rad) keeps every clearance of the rig: each arm's
-    segment sampled by its model, and the arms against each other."""
-    assert replay.models is not None
-    for name, part in zip(replay.rig.names, replay.plant.slices, strict=True):
-        if not replay.models[name].segment_clear(a[part], b[part]).clear:
-            return False
-    motion = np.concatenate([replay.models[name].motion_per_radian for name in replay.rig.names])
-    travel = float(np.abs(b - a) @ motion)  # metres: how far any point of either arm moves, at most
-    n = max(2, math.ceil(travel / (0.5 * max(replay.between.clearance, 1e-3))) + 1)
-    s = np.linspace(0.0, 1.0, n)[:, None]
-    apart = replay.between.min_clearance(replay.plant.split(a + s * (b - a)))
-    return bool(np.all(apart >= replay.between.clearance))
 
 
 def _summarize(replay: RigReplay, ticks: TickStats, records: list[TickRecord], *, duration_s: float) -> RigSummary:

@@ -123,7 +123,7 @@ def test_a_blocked_lead_in_goes_through_home(arm):
     model = CollisionModel.for_arm(arm, world=ball_on_the_way(arm, LEFT, RIGHT))
     assert not model.segment_clear(LEFT, RIGHT).clear
     config = LoopConfig(collision=model, rate=50.0)
-    plan = plan_lead_in(arm, config, LEFT, RIGHT, speed=np.full(6, 0.5), target=np.zeros(3))
+    plan = plan_lead_in(arm, LEFT, RIGHT, speed=np.full(6, 0.5), rate=config.rate, target=np.zeros(3), collision=model)
     assert isinstance(plan, Route) and len(plan.legs) == 2
     goals = np.array([plan.goal(k).q for k in range(-plan.n_slots, 0)])
     np.testing.assert_allclose(goals[-1], RIGHT)
@@ -146,7 +146,7 @@ def test_a_blocked_lead_in_goes_through_home(arm):
                       on_tick=records.append)  # fmt: skip
     assert stats.lead_in_ticks == plan.n_slots and stats.lead_in_blocked == 0
     np.testing.assert_allclose(records[-1].q_cmd, RIGHT, atol=1e-9)
-    straight = plan_lead_in(arm, LoopConfig(), LEFT, RIGHT, speed=np.full(6, 0.5), target=np.zeros(3))
+    straight = plan_lead_in(arm, LEFT, RIGHT, speed=np.full(6, 0.5), rate=100.0, target=np.zeros(3), collision=None)
     assert not isinstance(straight, Route)  # without a model: the straight line
 
 
@@ -154,7 +154,7 @@ def test_a_lead_in_with_no_safe_route_is_refused(arm):
     model = CollisionModel.for_arm(arm, world=World(keep_out=(Sphere(tuple(tool(arm, RIGHT)), 0.03),)))
     config = LoopConfig(collision=model)
     with pytest.raises(ConfigError, match=r"^collision: Expected a collision-free lead-in .* within the clearance"):
-        plan_lead_in(arm, config, LEFT, RIGHT, speed=np.full(6, 0.5), target=np.zeros(3))
+        plan_lead_in(arm, LEFT, RIGHT, speed=np.full(6, 0.5), rate=config.rate, target=np.zeros(3), collision=model)
     with pytest.raises(ConfigError, match=r"collision-free lead-in"):
         check_moves(arm, config, first=RIGHT, rest=False)  # before the bus connects
 

@@ -109,3 +109,19 @@ def test_telemetry_has_each_arms_columns_and_their_tracking_error():
             expected = 1e3 * np.linalg.norm(a.arm.fk(q)[0][:3, 3] - mapped)
             assert float(row[f"{a.name}/tracking_mm"]) == pytest.approx(expected, abs=2e-3)
             assert row[f"{a.name}/waist_present_rad"] == ""  # a dry run reads nothing back
+
+
+def test_the_lead_in_moves_every_arm_from_rest_to_the_clips_first_poses():
+    rig = load_rig("wx250s-pair")
+    targets = rig_targets(retarget.load_bvh(DEMO_CLIP), rig)
+    models = {a.name: CollisionModel.for_arm(a.arm) for a in rig.arms}
+    records = []
+    replay = RigReplay(rig, targets, config=LoopConfig(end=0.05), models=models, clock=VirtualClock(),
+                       on_tick=records.append)  # fmt: skip
+    summary = replay.run(None, q_start=replay.plant.rest, lead_in=True)
+    lead = [r for r in records if r.lead_in]
+    assert summary.rig.lead_in_ticks == len(lead) > 10 and not any(r.blocked for r in records)
+    np.testing.assert_allclose(lead[-1].q_cmd, replay.initial_pose(), atol=1e-6)  # arrived, every arm
+    for r in lead[::5]:
+        poses = {a.name: replay.arm_record(r, a.name).q_cmd for a in rig.arms}
+        assert sampled_min_clearance(rig, poses, spacing=0.01) > 0
