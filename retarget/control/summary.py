@@ -9,7 +9,7 @@ dict carry their unit in the key (``_s``, ``_ms``, ``_mm``, ``_hz``).
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 
@@ -185,6 +185,30 @@ def _pct(values: np.ndarray, q: float) -> float:
     return float(np.percentile(values, q)) if values.size else 0.0
 
 
+class IKFigures(TypedDict):
+    """The IK fields of a :class:`RunSummary`."""
+
+    ik_converged_pct: float
+    ik_error_median_mm: float
+    ik_error_p95_mm: float
+    ik_error_max_mm: float
+    ik_sweeps_mean: float
+
+
+def ik_figures(ik_error_m: np.ndarray, ik_sweeps: np.ndarray, ik_converged: np.ndarray) -> IKFigures:
+    """The IK fields of a :class:`RunSummary` (``ik_converged_pct``, ``ik_error_median_mm``, ...) from per-tick
+    arrays ``(n_ticks,)`` (errors metres); 0 for no ticks."""
+    err_mm = np.asarray(ik_error_m, dtype=np.float64) * 1e3
+    n = int(err_mm.size)
+    return IKFigures(
+        ik_converged_pct=100.0 * float(np.count_nonzero(ik_converged)) / n if n else 0.0,
+        ik_error_median_mm=_pct(err_mm, 50),
+        ik_error_p95_mm=_pct(err_mm, 95),
+        ik_error_max_mm=float(err_mm.max()) if n else 0.0,
+        ik_sweeps_mean=float(np.mean(ik_sweeps)) if n else 0.0,
+    )
+
+
 def summarize(
     *,
     arm: str,
@@ -243,11 +267,7 @@ def summarize(
         real_time_factor=(
             float(run_time_s / wall_time_s) if wall_time_s > 0 else float("inf") if run_time_s > 0 else 0.0
         ),
-        ik_converged_pct=100.0 * float(np.count_nonzero(ik_converged)) / n if n else 0.0,
-        ik_error_median_mm=_pct(err_mm, 50),
-        ik_error_p95_mm=_pct(err_mm, 95),
-        ik_error_max_mm=float(err_mm.max()) if n else 0.0,
-        ik_sweeps_mean=float(np.mean(ik_sweeps)) if n else 0.0,
+        **ik_figures(ik_error_m, ik_sweeps, ik_converged),
         clamped_ticks=int(np.count_nonzero(clamped)),
         velocity_limited_ticks=int(np.count_nonzero(velocity_limited)),
         bus_errors=int(bus_errors),

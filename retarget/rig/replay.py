@@ -37,6 +37,7 @@ from retarget.control.replay import ControlLoop, LeadIn, plan_lead_in
 from retarget.control.safety import Route
 from retarget.control.source import JointGoal, TargetSource, TickGoal
 from retarget.control.stats import TickStats
+from retarget.control.summary import ik_figures
 from retarget.control.tracking import Trajectory, following
 from retarget.errors import BusError
 from retarget.rig.check import RigGoalCheck, RigRoutes
@@ -286,20 +287,21 @@ def _summarize(replay: RigReplay, ticks: TickStats, records: list[TickRecord], *
         trajectory = Trajectory()
         for r in own:
             trajectory(r)
-        err_mm = np.array([r.ik_error for r in own]) * 1e3
         q = np.array([r.q_cmd for r in own]).reshape(len(own), -1)
         speeds = np.abs(np.diff(q, axis=0)) * rate
         limited = int(np.count_nonzero(np.any(speeds >= 0.999 * replay.plant.max_velocity[part], axis=1)))
-        n = len(own)
+        played = [r.tick % replay.n_slots for r in own]
+        ik = ik_figures(
+            np.array([r.ik_error for r in own]),
+            np.array([r.ik_sweeps for r in own]),
+            np.array([r.ik_converged for r in own]),
+        )
         summary = replace(
             rig,
             arm=f"{a.name} ({a.arm.name})",
-            ik_converged_pct=100.0 * sum(r.ik_converged for r in own) / n if n else 0.0,
-            ik_error_median_mm=float(np.median(err_mm)) if n else 0.0,
-            ik_error_p95_mm=float(np.percentile(err_mm, 95)) if n else 0.0,
-            ik_error_max_mm=float(err_mm.max()) if n else 0.0,
-            ik_sweeps_mean=float(np.mean([r.ik_sweeps for r in own])) if n else 0.0,
             velocity_limited_ticks=limited,
+            ik_blocked_ticks=int(np.count_nonzero(replay.paths[a.name].blocked[played])),
+            **ik,
         )
         reference = replay.targets.arms[a.name].reference
         arms[a.name] = summary.with_following(following(a.arm, trajectory, rate=rate, reference=reference))
