@@ -13,13 +13,12 @@ import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import retarget
 from retarget.bvh import DEMO_CLIP
 from retarget.bvh.motion import Motion
 from retarget.cli._arm import DEFAULT_ARM, collision_model
-from retarget.cli.replay import mapping_overrides
+from retarget.cli.replay import loop_config, mapping_overrides, write_trajectory
 from retarget.collision import CollisionModel
 from retarget.control.clock import VirtualClock
 from retarget.control.loop import TickRecord
@@ -74,9 +73,8 @@ def load_rig_inputs(args: argparse.Namespace) -> RigInputs:
     return RigInputs(clip=clip, motion=motion, rig=rig, models=models, targets=targets)
 
 
-def export_rig(args: argparse.Namespace, loop_config: Any, write_trajectory: Any) -> int:
-    """``retarget export --rig``: every arm's trajectory in one CSV, ``time_s`` then ``<arm>/<joint>_rad`` (export's
-    own ``loop_config`` and ``write_trajectory``, passed in: this module is imported by export)."""
+def export_rig(args: argparse.Namespace) -> int:
+    """``retarget export --rig``: every arm's trajectory in one CSV, ``time_s`` then ``<arm>/<joint>_rad``."""
     inputs = load_rig_inputs(args)
     config = loop_config(args, inputs.motion)
     clearance = min(m.clearance for m in inputs.models.values())

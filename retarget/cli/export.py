@@ -15,16 +15,21 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Callable, Sequence
-from typing import IO, Any, TypeVar
+from collections.abc import Callable
+from typing import Any
 
 from retarget.cli._rig_run import add_rig_option, export_rig
-from retarget.cli.replay import Inputs, add_clip_arguments, add_mapping_arguments, load_inputs, loop_config
+from retarget.cli.replay import (
+    Inputs,
+    add_clip_arguments,
+    add_mapping_arguments,
+    load_inputs,
+    loop_config,
+    write_trajectory,
+)
 from retarget.control import ControlLoop, TickRecord
 from retarget.control.clock import VirtualClock
 from retarget.control.summary import RunSummary
-
-T = TypeVar("T")
 
 EXAMPLES = """\
 examples:
@@ -67,27 +72,9 @@ def offline_loop(args: argparse.Namespace) -> tuple[Inputs, ControlLoop]:
     return inputs, loop
 
 
-def write_trajectory(output: str, joint_names: Sequence[str], play: Callable[[Callable[[TickRecord], None]], T]) -> T:
-    """Run ``play(on_tick)`` with an ``on_tick`` that writes each tick's goals as a CSV row to ``output`` (a path,
-    ``-`` = stdout) under the header ``time_s, <joint>_rad ...``; returns what ``play`` returns."""
-    out: IO[str] = sys.stdout if output == "-" else open(output, "w", newline="", encoding="utf-8")  # noqa: SIM115
-    try:
-        out.write(",".join(["time_s", *(f"{name}_rad" for name in joint_names)]) + "\n")
-
-        def write(r: TickRecord) -> None:
-            out.write(f"{r.time:.6f}," + ",".join(f"{v:.6f}" for v in r.q_cmd) + "\n")
-
-        result = play(write)
-        out.flush()
-    finally:
-        if out is not sys.stdout:
-            out.close()
-    return result
-
-
 def run(args: argparse.Namespace) -> int:
     if args.rig is not None:
-        return export_rig(args, loop_config, write_trajectory)
+        return export_rig(args)
 
     inputs, loop = offline_loop(args)
     q0 = loop.initial_pose()

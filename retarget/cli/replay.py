@@ -17,10 +17,10 @@ import argparse
 import dataclasses
 import re
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import IO, Any, TypeVar
 
 import retarget
 from retarget.arm import Arm
@@ -51,6 +51,8 @@ from retarget.errors import BusError, ConfigError
 from retarget.mapping import Targets, retarget_targets
 from retarget.mapping.config import MappingConfig
 from retarget.mapping.filter import DEFAULT_CUTOFF_HZ
+
+T = TypeVar("T")
 
 EXAMPLES = """\
 examples:
@@ -184,6 +186,24 @@ def mapping_overrides(args: argparse.Namespace) -> dict[str, Any]:
     given = {name: value for name, value in overrides.items() if value is not None}
     MappingConfig.from_table({}, overrides=given)
     return given
+
+
+def write_trajectory(output: str, joint_names: Sequence[str], play: Callable[[Callable[[TickRecord], None]], T]) -> T:
+    """Run ``play(on_tick)`` with an ``on_tick`` that writes each tick's goals as a CSV row to ``output`` (a path,
+    ``-`` = stdout) under the header ``time_s, <joint>_rad ...``; returns what ``play`` returns."""
+    out: IO[str] = sys.stdout if output == "-" else open(output, "w", newline="", encoding="utf-8")  # noqa: SIM115
+    try:
+        out.write(",".join(["time_s", *(f"{name}_rad" for name in joint_names)]) + "\n")
+
+        def write(r: TickRecord) -> None:
+            out.write(f"{r.time:.6f}," + ",".join(f"{v:.6f}" for v in r.q_cmd) + "\n")
+
+        result = play(write)
+        out.flush()
+    finally:
+        if out is not sys.stdout:
+            out.close()
+    return result
 
 
 def number(text: str, *, option: str) -> float:
