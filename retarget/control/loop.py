@@ -101,6 +101,9 @@ class Plant(Protocol):
     @property
     def rest(self) -> npt.NDArray[np.float64]: ...
 
+    @property
+    def home(self) -> npt.NDArray[np.float64]: ...
+
 
 class Checker(Protocol):
     """The last check of each goal before it is written (:class:`~retarget.control.safety.GoalCheck` is one):

@@ -57,7 +57,6 @@ import math
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -65,7 +64,7 @@ import numpy.typing as npt
 from retarget.arm.model import Arm
 from retarget.control.bus import Bus, connected
 from retarget.control.clock import Clock, MonotonicClock
-from retarget.control.loop import LoopConfig, TickRecord, run_ticks
+from retarget.control.loop import LoopConfig, Plant, TickRecord, run_ticks
 from retarget.control.plan import PathPlan, solve_and_plan
 from retarget.control.safety import Route, RouteModel, require_route
 from retarget.control.source import JointGoal, TargetSource, TickGoal, TickSolver, TickTarget
@@ -462,22 +461,8 @@ class ClipSource(TargetSource):
         return TickTarget(self._positions[j], None if rotations is None else rotations[j], self._clamped[j])
 
 
-class _Poses(Protocol):
-    """What a lead-in needs of the joints it moves (an :class:`~retarget.arm.model.Arm`, a rig's plant): rad,
-    rad/s^2."""
-
-    @property
-    def home(self) -> npt.NDArray[np.float64]: ...
-
-    @property
-    def rest(self) -> npt.NDArray[np.float64]: ...
-
-    @property
-    def max_acceleration(self) -> npt.NDArray[np.float64]: ...
-
-
 def plan_lead_in(
-    arm: _Poses,
+    arm: Plant,
     q_from: npt.NDArray[np.float64],
     q_to: npt.NDArray[np.float64],
     *,
