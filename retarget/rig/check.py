@@ -3,11 +3,15 @@ against each other, on the pose and on the joint-space segment to it.
 
 - Each arm's own check is its :class:`~retarget.control.safety.GoalCheck` on its part of the plant's vector
   (itself, its table, its keep-outs, in its base frame).
-- Arm against arm (:class:`~retarget.rig.clearance.RigClearance`) on the segment: along a straight joint-space
-  move no point of arm A moves more than ``sum_j motion_per_radian_j |dq_j|`` (its collision model's bound), so
-  two arms close by at most ``M``, the sum of both.  With clearances ``d0`` and ``d1`` at the ends the whole
-  segment keeps ``(d0 + d1 - M) / 2``; only when that falls short is the segment sampled, finely enough that no
-  point moves more than half the clearance between samples.
+- Arm against arm (:class:`~retarget.rig.clearance.RigClearance`), pair by pair of shapes: along a straight
+  joint-space move ``dq`` no point of shape ``i`` moves more than ``motion[i] @ |dq|`` (its arm's
+  :attr:`~retarget.rig.clearance.ArmShapes.motion`: only the joints before its frame, each by its lever), so the
+  pair ``(i, j)`` closes by at most the sum of its two shapes' travels.  Every pair's clearance at the last pose
+  measured (the reference) therefore bounds it at any pose from there; that bound is concave along a straight
+  move, so a move whose ends both keep the clearance from the reference needs no query (most ticks).  Otherwise
+  the goal is measured (the new reference), and the segment is bounded pair by pair from its ends' clearances
+  ``d0``, ``d1`` and the pair's travel ``M``: ``(d0 + d1 - M) / 2``; only when that falls short is the segment
+  sampled, finely enough that no point moves more than half the clearance between samples.
 
 A goal is allowed only when every check allows it.  A check that allowed its part of a goal another part blocked
 starts again from the pose held (its bookkeeping assumed the goal was written), so every bound stays sound.
@@ -27,6 +31,11 @@ import numpy.typing as npt
 from retarget.control.safety import GoalCheck
 from retarget.rig.clearance import RigClearance
 from retarget.rig.plant import RigPlant
+
+Array = npt.NDArray[np.float64]
+#: a pose the arms' clearances were measured at: the pose, each pair's clearance, their least, each shape's levers,
+#: the whole rig's levers and spread (:meth:`RigGoalCheck._measured`)
+_Reference = tuple[Array, Array, float, Array, list[tuple[float, float, float]]]
 
 if TYPE_CHECKING:
     from retarget.collision import CollisionModel
@@ -61,26 +70,30 @@ class RigGoalCheck:
         self._parts = [(a.name, s) for a, s in zip(plant.rig.arms, plant.slices, strict=True)]
         q0 = np.asarray(q_start, dtype=np.float64)
         self._checks = {name: GoalCheck(self.models[name], q0[s]) for name, s in self._parts}
-        #: metres per radian of each plant joint: how far a point of its arm moves (its model's bound)
-        self._motion = np.concatenate([self.models[name].motion_per_radian for name, _ in self._parts])
         self._limit = float(between.clearance)
         self._step = 0.5 * max(self._limit, 1e-3)  # no point moves more than this between two samples
-        #: the last pose whose arm-against-arm clearance was measured, and that clearance (the bound's reference)
-        self._ref: tuple[npt.NDArray[np.float64], float] = (q0, self._arms_apart(q0))
-        self.clearance = min(self._ref[1], *(c.clearance for c in self._checks.values()))
+        self._pairs = between.pair_shapes
+        #: ``(n_shapes, n_joints)``: the second-order term of each shape's travel (see :meth:`_falls`), per rad^2
+        self._spread = _spread(between)
+        i, j = self._pairs
+        self._whole_spread = (self._spread[i].max(axis=0) + self._spread[j].max(axis=0)).tolist()
+        #: the last pose whose arm-against-arm clearances were measured (the bounds' reference): the pose, each pair's
+        #: clearance, their least, and each shape's levers there
+        self._ref = self._measured(q0)
+        self.clearance = min(self._ref[2], *(c.clearance for c in self._checks.values()))
 
     def allows(self, q_from: Sequence[float], q_to: Sequence[float]) -> bool:
         """Whether the move ``q_from`` -> ``q_to`` (rad) keeps every clearance; sets :attr:`clearance` when it does."""
-        a, b = np.asarray(q_from, dtype=np.float64), np.asarray(q_to, dtype=np.float64)
+        a, b = list(q_from), list(q_to)
         passed: list[str] = []
         for name, s in self._parts:
-            if not self._checks[name].allows(a[s].tolist(), b[s].tolist()):
-                self._restart(passed, a)
+            if not self._checks[name].allows(a[s], b[s]):
+                self._restart(passed, np.array(a))
                 return False
             passed.append(name)
         apart = self._segment_apart(a, b)
         if apart < self._limit:
-            self._restart(passed, a)
+            self._restart(passed, np.array(a))
             return False
         self.clearance = min(apart, *(c.clearance for c in self._checks.values()))
         return True
@@ -91,34 +104,82 @@ class RigGoalCheck:
             if name in names:
                 self._checks[name] = GoalCheck(self.models[name], q_held[s])
 
-    def _arms_apart(self, q: npt.NDArray[np.float64]) -> float:
-        """The least arm-against-arm clearance of the plant's pose ``q`` (metres)."""
-        return float(self.between.min_clearance(self.plant.split(q)))
+    def _measured(self, q: Array) -> _Reference:
+        """The reference of the plant's pose ``q``: its pairs' clearances, their least, its shapes' levers, and the
+        whole rig's: per joint the greatest lever (and spread) of either side of any pair, summed, so that
+        ``whole[0] @ |dq| + whole[1] @ dq^2`` bounds every pair's fall at once."""
+        d, levers = self.between.measure(self.plant.split(q))
+        i, j = self._pairs
+        lever = (levers[i].max(axis=0) + levers[j].max(axis=0)).tolist()
+        whole = list(zip(lever, self._whole_spread, q.tolist(), strict=True))
+        return q, d, float(d.min(initial=math.inf)), levers, whole
 
-    def _segment_apart(self, a: npt.NDArray[np.float64], b: npt.NDArray[np.float64]) -> float:
+    def _falls(self, levers: Array, dq: Array) -> Array:
+        """How far each pair may close ``(n_pairs, k)`` (metres) along ``k`` straight moves ``dq`` ``(n_joints, k)``
+        (rad) from the pose whose ``levers`` these are.
+
+        A point's speed is at most the sum over the joints of each one's speed times the point's distance from its
+        axis; that distance grows at most by the point's travel relative to the joint's child frame, which only the
+        joints after it make.  Integrated along the move, a shape's travel is at most ``levers @ |dq| +
+        1/2 sum_{j<k} motion_k |dq_j| |dq_k|``, and ``|dq_j| |dq_k| <= (dq_j^2 + dq_k^2) / 2`` makes that a convex
+        function of ``dq`` (``levers @ |dq| + spread @ dq^2``): along a straight move the bound it gives is concave,
+        so its least is at an end."""
+        travel = levers @ np.abs(dq) + self._spread @ (dq * dq)
+        i, j = self._pairs
+        out: Array = travel[i] + travel[j]
+        return out
+
+    def _segment_apart(self, q_from: list[float], q_to: list[float]) -> float:
         """The least arm-against-arm clearance along ``a`` -> ``b``, or a lower bound of it (metres).
 
-        Most moves need no query: from the last pose measured (``q_ref``, clearance ``d_ref``) a pose ``q`` keeps at
-        least ``d_ref - |q - q_ref| . motion``, and that bound is concave along a straight move, so its least is
-        at an end.  When it falls short, ``b`` is measured (the new reference) and the segment is bounded from
-        its ends, or sampled near a contact."""
-        q_ref, d_ref = self._ref
-        motion = self._motion
-        low = d_ref - max(float(np.abs(a - q_ref) @ motion), float(np.abs(b - q_ref) @ motion))
+        Most moves need no query: from the reference (``q_ref``, each pair's clearance ``d_ref``) a pose ``q``
+        keeps at least ``d_ref - fall(q - q_ref)`` pair by pair (:meth:`_falls`), and that bound is concave along
+        a straight move, so its least is at an end.  When it falls short, ``b`` is measured (the new reference) and
+        the segment is bounded from its ends pair by pair (``(d0 + d1 - fall(a - b)) / 2``), or sampled near a
+        contact."""
+        q_ref, d_ref, least, levers, whole = self._ref
+        low = least - max(_fall(whole, q_from), _fall(whole, q_to))  # the whole rig at once
         if low >= self._limit:
             return low
-        d0 = d_ref - float(np.abs(a - q_ref) @ motion)  # exact when ``a`` is the reference
-        if d0 < self._limit:
-            d0 = self._arms_apart(a)
-        d1 = self._arms_apart(b)
-        self._ref = (b, d1)
-        travel = float(np.abs(b - a) @ motion)  # both arms' points together close by at most this
-        low = 0.5 * (d0 + d1 - travel)
-        if low < self._limit and travel > 0:
-            n = max(2, math.ceil(travel / self._step) + 1)
+        a, b = np.array(q_from), np.array(q_to)
+        ends = self._falls(levers, np.array([q_from, q_to]).T - q_ref[:, None])  # (n_joints, 2): each pair
+        d0, low_b = d_ref - ends[:, 0], d_ref - ends[:, 1]  # d0: exact when ``a`` is the reference
+        low = float(np.minimum(d0, low_b).min(initial=math.inf))
+        if low >= self._limit:
+            return low
+        if float(d0.min(initial=math.inf)) < self._limit:
+            d0 = self._measured(a)[1]
+        self._ref = ref = self._measured(b)
+        fall = self._falls(ref[3], (a - b)[:, None])[:, 0]  # how far each pair may close along the move
+        low = float((0.5 * (d0 + ref[1] - fall)).min(initial=math.inf))
+        if low < self._limit and float(fall.max(initial=0.0)) > 0:
+            n = max(2, math.ceil(float(fall.max()) / self._step) + 1)
             s = np.linspace(0.0, 1.0, n)[:, None]
-            low = min(float(self.between.min_clearance(self.plant.split(a + s * (b - a))).min()), d0, d1)
+            sampled = self.between.distances(self.plant.split(a + s * (b - a)))
+            low = min(float(sampled.min(initial=math.inf)), float(d0.min(initial=math.inf)), ref[2])
         return low
+
+
+def _fall(whole: list[tuple[float, float, float]], q: Sequence[float]) -> float:
+    """The whole rig's fall bound from the reference to ``q`` (plain floats: ``whole`` holds per joint the lever,
+    the spread and the reference's angle)."""
+    fall = 0.0
+    for (lever, spread, ref), x in zip(whole, q, strict=True):
+        dx = x - ref
+        fall += lever * abs(dx) + spread * dx * dx
+    return fall
+
+
+def _spread(between: RigClearance) -> Array:
+    """``(n_shapes, n_joints)`` per rad^2: ``spread[i, l] = (sum_{k>l} motion[i, k] + l motion[i, l]) / 4`` over the
+    joints of shape ``i``'s arm (``l``, ``k`` counted within it), so that ``1/2 sum_{j<k} motion[i, k] |x_j| |x_k|
+    <= spread[i] @ x^2`` (see :meth:`RigGoalCheck._falls`)."""
+    out = np.zeros_like(between.motion)
+    for joints in between.joint_slices:
+        motion = between.motion[:, joints]
+        after = np.cumsum(motion[:, ::-1], axis=1)[:, ::-1] - motion  # sum over k > l
+        out[:, joints] = 0.25 * (after + np.arange(motion.shape[1])[None, :] * motion)
+    return out
 
 
 class _Segment(NamedTuple):

@@ -13,14 +13,12 @@ Arrays: poses ``(n_joints,)`` or ``(n_poses, n_joints)`` float64 radians per arm
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
-from retarget.arm.kinematics import Chain
 from retarget.collision import DEFAULT_CLEARANCE, Box, Capsule, fallback_geometry
 from retarget.collision.distance import segment_segment
 from retarget.rig.spec import Rig, RigArm
@@ -33,12 +31,19 @@ Array = npt.NDArray[np.float64]
 @dataclass(frozen=True)
 class ArmShapes:
     """One arm's shapes as capsules on its frames: ``frames`` ``(m,)`` frame index (0 the base), ``ends``
-    ``(m, 2, 3)`` metres in that frame, ``radii`` ``(m,)`` metres, ``names`` ``(m,)`` the links'."""
+    ``(m, 2, 3)`` metres in that frame, ``radii`` ``(m,)`` metres, ``names`` ``(m,)`` the links'.
+
+    ``motion`` ``(m, n_joints)`` metres per radian: how far any point of shape ``i``'s segment moves per radian of
+    joint ``j`` (0 for a joint that does not move it).  Joint ``j`` turns the frames from ``j + 1`` on about an
+    axis through frame ``j + 1``'s origin, so a point on frame ``f > j`` is at most the hops from frame ``j + 1``
+    to frame ``f`` plus its own distance from frame ``f``'s origin from that axis.  Along a straight joint-space
+    move ``dq`` (rad) a point of shape ``i`` travels at most ``motion[i] @ |dq|``, whatever the pose."""
 
     frames: npt.NDArray[np.intp]
     ends: Array
     radii: Array
     names: tuple[str, ...]
+    motion: Array
 
     @classmethod
     def of(cls, rig_arm: RigArm) -> ArmShapes:
@@ -58,37 +63,81 @@ class ArmShapes:
                 raise TypeError(f"Expected a Capsule or a Box, got {type(shape).__name__}")
             frames.append(link.frame)
             names.append(link.name)
-        return cls(np.array(frames, dtype=np.intp), np.array(ends, dtype=np.float64), np.array(radii), tuple(names))
+        ends_array = np.array(ends, dtype=np.float64).reshape(-1, 2, 3)
+        hops = np.linalg.norm(arm.chain.origins[:, :3, 3], axis=1)  # frame k+1's origin from frame k's
+        extent = np.linalg.norm(ends_array, axis=2).max(axis=1, initial=0.0)  # a segment's farthest point: an end
+        motion = np.zeros((len(frames), arm.chain.n))
+        for i, frame in enumerate(frames):
+            for j in range(frame):  # joints 0 .. frame-1 move a shape on frame ``frame``
+                motion[i, j] = float(hops[j + 1 : frame].sum()) + extent[i]
+        return cls(np.array(frames, dtype=np.intp), ends_array, np.array(radii), tuple(names), motion)
 
     def world(self, rig_arm: RigArm, Q: Array) -> Array:
         """The capsules' end points ``(n_poses, m, 2, 3)`` metres, world, of poses ``Q`` ``(n_poses, n_joints)``."""
-        if Q.shape[0] == 1:  # one pose: the frames one joint at a time (a batch of one costs 10x more)
-            frames = _frames_one(rig_arm.arm.chain, Q[0])[None, self.frames]
-        else:
-            frames = rig_arm.arm.chain.frames_batch(Q)[:, self.frames]  # (N, m, 4, 4) base frame
-        local = np.einsum("nmij,mej->nmei", frames[..., :3, :3], self.ends) + frames[..., None, :3, 3]
-        T = rig_arm.placement.matrix
-        out: Array = local @ T[:3, :3].T + T[:3, 3]
+        return _Placer([rig_arm], [self]).ends([np.asarray(Q, dtype=np.float64)])[0]
+
+
+class _Placer:
+    """Every arm's shapes placed in the world at once: the arms' chains side by side (a shorter chain padded with
+    still joints), every joint's rotation in one go (Rodrigues), then the chain products with each arm's placement
+    as their first factor, only as far as the last frame that carries a shape."""
+
+    def __init__(self, rig_arms: list[RigArm], shapes: list[ArmShapes]):
+        self.sizes = [s.frames.size for s in shapes]
+        n = self.n = max(1, *(int(s.frames.max(initial=0)) for s in shapes))
+        A = len(rig_arms)
+        self.n_joints = [a.arm.chain.n for a in rig_arms]
+        axes = np.zeros((A, n, 3))
+        self._local = np.broadcast_to(np.eye(4), (A, n, 4, 4)).copy()  # a padded joint: no offset, no turn
+        for k, a in enumerate(rig_arms):
+            m = min(n, a.arm.chain.n)
+            axes[k, :m], self._local[k, :m] = a.arm.chain.axes[:m], a.arm.chain.origins[:m]
+        x, y, z = np.moveaxis(axes, -1, 0)
+        zero = np.zeros_like(x)
+        K = np.stack([zero, -z, y, z, zero, -x, -y, x, zero], axis=-1).reshape(A, n, 3, 3)
+        self._rot0 = self._local[..., :3, :3].copy()
+        self._K, self._K2 = self._rot0 @ K, self._rot0 @ K @ K  # R0 (I + sin K + (1 - cos) K^2), R0 folded in
+        self._axes = axes  #: each joint's axis in its child frame (a turn about it leaves it where it is)
+        self._base = np.stack([np.asarray(a.placement.matrix, dtype=np.float64) for a in rig_arms])
+        self._arm = np.concatenate([np.full(s.frames.size, k, dtype=np.intp) for k, s in enumerate(shapes)])
+        self._frame = np.concatenate([s.frames for s in shapes])
+        self._ends = np.concatenate([s.ends for s in shapes])  # (m, 2, 3) in their frames
+        #: (shape, joint) pairs where the joint moves the shape: joint j < the shape's frame, within its arm
+        self._moves = np.arange(n)[None, :] < self._frame[:, None]
+
+    def frames(self, Q: list[Array]) -> Array:
+        """Every arm's frames ``(N, n_arms, n + 1, 4, 4)``, world, of ``Q``: each arm's ``(N, n_joints)`` rad."""
+        N, n = Q[0].shape[0], self.n
+        q = np.zeros((N, len(Q), n))
+        for k, qk in enumerate(Q):
+            m = min(n, qk.shape[1])
+            q[:, k, :m] = qk[:, :m]
+        s, c = np.sin(q)[..., None, None], (1.0 - np.cos(q))[..., None, None]
+        local = np.broadcast_to(self._local, (N, *self._local.shape)).copy()
+        local[..., :3, :3] = self._rot0 + s * self._K + c * self._K2
+        frames = np.empty((N, len(Q), n + 1, 4, 4))
+        frames[:, :, 0] = T = self._base
+        for i in range(n):
+            frames[:, :, i + 1] = T = T @ local[:, :, i]
+        return frames
+
+    def ends(self, Q: list[Array], frames: Array | None = None) -> list[Array]:
+        """Each arm's shapes' end points ``(N, m_arm, 2, 3)`` metres, world (of ``frames``, else of ``Q``)."""
+        F = (self.frames(Q) if frames is None else frames)[:, self._arm, self._frame]  # (N, m, 4, 4)
+        out: Array = (F[:, :, None, :3, :3] @ self._ends[None, :, :, :, None])[..., 0] + F[:, :, None, :3, 3]
+        return np.split(out, np.cumsum(self.sizes)[:-1], axis=1)
+
+    def levers(self, frames: Array, ends: Array) -> Array:
+        """``(m, n)`` metres: each shape's greatest distance from the axis of each joint ``j`` of its arm that moves
+        it (0 for the others), of one pose's ``frames`` ``(n_arms, n + 1, 4, 4)`` and ends ``(m, 2, 3)``, world."""
+        R, origin = frames[:, 1:, :3, :3], frames[:, 1:, :3, 3]  # joint j's axis runs through frame j + 1's origin
+        axis = (R @ self._axes[..., None])[..., 0]  # (n_arms, n, 3) unit, world
+        d = ends[:, None, :, :] - origin[self._arm][:, :, None, :]  # (m, n, 2, 3)
+        along = np.einsum("mjek,mjk->mje", d, axis[self._arm])
+        square = np.einsum("mjek,mjek->mje", d, d) - along * along
+        out: Array = np.sqrt(np.maximum(square, 0.0)).max(axis=-1)
+        out[~self._moves] = 0.0
         return out
-
-
-def _frames_one(chain: Chain, q: Array) -> Array:
-    """Every link frame ``(n_joints + 1, 4, 4)`` of one pose ``q`` (rad), base frame first: ``Chain.frames_batch``
-    of one pose, without its batch overhead."""
-    frames = np.empty((chain.n + 1, 4, 4))
-    frames[0] = T = np.eye(4)
-    rot = np.eye(4)
-    for i, angle in enumerate(q.tolist()):
-        x, y, z = chain.axes[i].tolist()
-        c, s = math.cos(angle), math.sin(angle)
-        t = 1.0 - c
-        rot[:3, :3] = (
-            (t * x * x + c, t * x * y - s * z, t * x * z + s * y),
-            (t * x * y + s * z, t * y * y + c, t * y * z - s * x),
-            (t * x * z - s * y, t * y * z + s * x, t * z * z + c),
-        )
-        frames[i + 1] = T = T @ chain.origins[i] @ rot
-    return frames
 
 
 class RigClearance:
@@ -106,57 +155,80 @@ class RigClearance:
         self.rig = rig
         self.clearance = float(clearance)
         self.shapes = {a.name: ArmShapes.of(a) for a in rig.arms}
+        self._placer = _Placer(list(rig.arms), list(self.shapes.values()))
+        first = dict(
+            zip(rig.names, np.cumsum([0] + [len(s.names) for s in self.shapes.values()])[:-1].tolist(), strict=True)
+        )
         names: list[str] = []
-        self._pairs: list[tuple[RigArm, RigArm]] = []
+        left: list[int] = []
+        right: list[int] = []
         for i, a in enumerate(rig.arms):
             for b in rig.arms[i + 1 :]:
-                self._pairs.append((a, b))
-                names += [
-                    f"{a.name}:{u}/{b.name}:{v}" for u in self.shapes[a.name].names for v in self.shapes[b.name].names
-                ]
+                sa, sb = self.shapes[a.name], self.shapes[b.name]
+                for u, name_u in enumerate(sa.names):
+                    for v, name_v in enumerate(sb.names):
+                        names.append(f"{a.name}:{name_u}/{b.name}:{name_v}")
+                        left.append(first[a.name] + u)
+                        right.append(first[b.name] + v)
         self.pair_names: tuple[str, ...] = tuple(names)  #: ``"left:upper_arm/right:gripper"``, as distances' columns
+        #: each pair's two shapes ``(n_pairs,)``, indices into every arm's shapes in rig order (:attr:`shapes`)
+        self.pair_shapes = (np.array(left, dtype=np.intp), np.array(right, dtype=np.intp))
+        radii = np.concatenate([s.radii for s in self.shapes.values()])
+        self._pair_radii = radii[self.pair_shapes[0]] + radii[self.pair_shapes[1]]
+        #: where each arm's joints are in the rig's joint vector (every arm's in rig order) and its shapes' rows
+        self.joint_slices = tuple(
+            slice(start, start + a.arm.chain.n)
+            for a, start in zip(rig.arms, np.cumsum([0] + [a.arm.chain.n for a in rig.arms]).tolist(), strict=False)
+        )
+        n_rig, m = sum(a.arm.chain.n for a in rig.arms), radii.size
+        #: ``(n_shapes, n_rig_joints)`` metres per radian: each shape's :attr:`ArmShapes.motion` on its arm's joints
+        self.motion = np.zeros((m, n_rig))
+        row = 0
+        for shapes, joints in zip(self.shapes.values(), self.joint_slices, strict=True):
+            self.motion[row : row + shapes.frames.size, joints] = shapes.motion
+            row += shapes.frames.size
+        # where each (shape, joint) lever goes in an (n_shapes, n_rig_joints) matrix
+        n = self._placer.n
+        column = np.array([s.start for s in self.joint_slices])[self._placer._arm][:, None] + np.arange(n)[None, :]
+        fits = np.arange(n)[None, :] < np.array(self._placer.n_joints)[self._placer._arm][:, None]
+        self._lever_at = (np.nonzero(fits)[0], column[fits], fits)
+
+    def _poses(self, poses: Mapping[str, npt.ArrayLike]) -> tuple[list[Array], bool]:
+        """Each arm's poses ``(N, n_joints)`` in rig order, and whether one pose per arm was given."""
+        Q = [np.asarray(poses[name], dtype=np.float64) for name in self.rig.names]
+        one = all(q.ndim == 1 for q in Q)
+        return [np.atleast_2d(q) for q in Q], one
 
     def distances(self, poses: Mapping[str, npt.ArrayLike]) -> Array:
         """Every arm-arm shape pair's signed clearance, metres: ``(n_pairs,)`` for one pose per arm, or
         ``(n_poses, n_pairs)`` for ``(n_poses, n_joints)`` arrays; ``poses`` maps each rig arm's name to its pose."""
-        Q = {name: np.asarray(poses[name], dtype=np.float64) for name in self.rig.names}
-        one = all(q.ndim == 1 for q in Q.values())
-        parts = []
-        for a, b in self._pairs:
-            sa, sb = self.shapes[a.name], self.shapes[b.name]
-            ea = sa.world(a, np.atleast_2d(Q[a.name]))[:, :, None]  # (N, ma, 1, 2, 3)
-            eb = sb.world(b, np.atleast_2d(Q[b.name]))[:, None, :]  # (N, 1, mb, 2, 3)
-            ea, eb = np.broadcast_arrays(ea, eb)
-            gap = segment_segment(ea[..., 0, :], ea[..., 1, :], eb[..., 0, :], eb[..., 1, :])
-            parts.append((gap - sa.radii[:, None] - sb.radii[None, :]).reshape(gap.shape[0], -1))
-        out: Array = np.concatenate(parts, axis=1)
+        Q, one = self._poses(poses)
+        out = self._pair_gaps(np.concatenate(self._placer.ends(Q), axis=1))
         return out[0] if one else out
 
-    def min_clearance(self, poses: Mapping[str, npt.ArrayLike]) -> Array:
-        """The least arm-arm clearance, metres: a 0-d array for one pose per arm, ``(n_poses,)`` for many.
+    def measure(self, poses: Mapping[str, npt.ArrayLike]) -> tuple[Array, Array]:
+        """Of one pose per arm: every pair's clearance ``(n_pairs,)`` (as :meth:`distances`) and every shape's lever
+        ``(n_shapes, n_rig_joints)`` metres: its greatest distance from each joint's axis (0 for a joint that does
+        not move it), joints in the rig's order (every arm's in turn, as :attr:`motion`'s columns)."""
+        Q, _ = self._poses(poses)
+        frames = self._placer.frames(Q)
+        ends = np.concatenate(self._placer.ends(Q, frames), axis=1)
+        rows, columns, fits = self._lever_at
+        levers = np.zeros(self.motion.shape)
+        levers[rows, columns] = self._placer.levers(frames[0], ends[0])[fits]
+        return self._pair_gaps(ends)[0], levers
 
-        One pose per arm measures exactly only the pairs that can be the nearest: a pair's clearance is at least
-        its bounding spheres' and at most its two capsules' midpoints', so a pair whose lower bound exceeds the
-        least upper bound is skipped."""
-        Q = {name: np.asarray(poses[name], dtype=np.float64) for name in self.rig.names}
-        if any(q.ndim != 1 for q in Q.values()):
-            out: Array = self.distances(poses).min(axis=-1)
-            return out
-        best = math.inf
-        for a, b in self._pairs:
-            sa, sb = self.shapes[a.name], self.shapes[b.name]
-            ea, eb = sa.world(a, Q[a.name][None])[0], sb.world(b, Q[b.name][None])[0]  # (m, 2, 3)
-            ca, cb = ea.mean(axis=1), eb.mean(axis=1)
-            half_a = 0.5 * np.linalg.norm(ea[:, 1] - ea[:, 0], axis=-1)
-            half_b = 0.5 * np.linalg.norm(eb[:, 1] - eb[:, 0], axis=-1)
-            centres = np.linalg.norm(ca[:, None] - cb[None], axis=-1) - sa.radii[:, None] - sb.radii[None]
-            upper = float(centres.min())
-            near = np.nonzero(centres - half_a[:, None] - half_b[None] <= min(upper, best))
-            if near[0].size:
-                i, j = near
-                gap = segment_segment(ea[i, 0], ea[i, 1], eb[j, 0], eb[j, 1]) - sa.radii[i] - sb.radii[j]
-                best = min(best, float(gap.min()))
-        return np.asarray(best)
+    def _pair_gaps(self, ends: Array) -> Array:
+        """``(n_poses, n_pairs)`` signed clearances of every arm's shapes' world ends ``(n_poses, m, 2, 3)``."""
+        i, j = self.pair_shapes
+        a, b = ends[:, i], ends[:, j]
+        out: Array = segment_segment(a[..., 0, :], a[..., 1, :], b[..., 0, :], b[..., 1, :]) - self._pair_radii
+        return out
+
+    def min_clearance(self, poses: Mapping[str, npt.ArrayLike]) -> Array:
+        """The least arm-arm clearance, metres: a 0-d array for one pose per arm, ``(n_poses,)`` for many."""
+        out: Array = self.distances(poses).min(axis=-1)
+        return out
 
     def is_clear(self, poses: Mapping[str, npt.ArrayLike]) -> bool:
         """Whether one pose per arm keeps every arm-arm pair at least :attr:`clearance` apart."""

@@ -277,30 +277,31 @@ class _RigSource(TargetSource):
 
 
 def _summarize(replay: RigReplay, ticks: TickStats, records: list[TickRecord], *, duration_s: float) -> RigSummary:
-    """The summary of ``replay``'s run that ended with ``ticks``, from its tick ``records`` (the rig's)."""
+    """The summary of ``replay``'s run that ended with ``ticks``, from its tick ``records`` (the rig's): each arm's
+    part of them (as :meth:`RigReplay.arm_record` gives it), taken from the records' arrays at once."""
     rig = ticks.summary(arm=replay.rig.name, clip=replay.clip_name, frames=replay.frames, duration_s=duration_s)
     clip = [r for r in records if not r.lead_in]
     rate = replay.config.rate
+    slots = [r.tick for r in clip]
+    clip_times = [r.clip_time for r in clip]
+    q_all = np.array([r.q_cmd for r in clip], dtype=np.float64).reshape(len(clip), replay.plant.n_joints)
+    targets_all = np.array([r.target for r in clip], dtype=np.float64).reshape(len(clip), 3 * len(replay.rig.arms))
+    played = np.array(slots, dtype=np.intp) % replay.n_slots
     arms = {}
-    for a, part in zip(replay.rig.arms, replay.plant.slices, strict=True):
-        own = [replay.arm_record(r, a.name) for r in clip]
+    for i, (a, part) in enumerate(zip(replay.rig.arms, replay.plant.slices, strict=True)):
+        q = q_all[:, part]
         trajectory = Trajectory()
-        for r in own:
-            trajectory(r)
-        q = np.array([r.q_cmd for r in own]).reshape(len(own), -1)
+        trajectory.slots, trajectory.clip_times = list(slots), list(clip_times)
+        trajectory.targets, trajectory.q_cmd = list(targets_all[:, 3 * i : 3 * i + 3]), list(q)
         speeds = np.abs(np.diff(q, axis=0)) * rate
         limited = int(np.count_nonzero(np.any(speeds >= 0.999 * replay.plant.max_velocity[part], axis=1)))
-        played = [r.tick % replay.n_slots for r in own]
-        ik = ik_figures(
-            np.array([r.ik_error for r in own]),
-            np.array([r.ik_sweeps for r in own]),
-            np.array([r.ik_converged for r in own]),
-        )
+        path = replay.paths[a.name]
+        ik = ik_figures(path.error[played], path.sweeps[played], path.converged[played])
         summary = replace(
             rig,
             arm=f"{a.name} ({a.arm.name})",
             velocity_limited_ticks=limited,
-            ik_blocked_ticks=int(np.count_nonzero(replay.paths[a.name].blocked[played])),
+            ik_blocked_ticks=int(np.count_nonzero(path.blocked[played])),
             **ik,
         )
         reference = replay.targets.arms[a.name].reference

@@ -7,7 +7,7 @@ import pytest
 
 from retarget.collision import CollisionModel
 from retarget.rig import RigPlant, load_rig
-from retarget.rig.check import RigGoalCheck
+from retarget.rig.check import RigGoalCheck, _fall
 from retarget.rig.clearance import RigClearance
 from tests.helpers import sampled_min_clearance
 
@@ -82,3 +82,88 @@ def test_every_allowed_move_of_a_random_walk_keeps_the_arms_apart(pair):
         else:
             blocked += 1
     assert allowed > 20 and blocked >= 1 and nearest < 0.05  # the walk moved, and came near the other arm
+
+
+def random_move(rng, n):
+    """A seeded joint move ``(n,)`` rad: one joint turned (the first-order bound's worst case), a small move of all,
+    or a large one (where the second-order term counts)."""
+    kind = rng.integers(3)
+    if kind == 0:
+        dq = np.zeros(n)
+        dq[rng.integers(n)] = rng.choice([-1, 1]) * rng.uniform(0.01, 0.3)
+        return dq
+    return rng.normal(0, 0.05 if kind == 1 else 0.5, n)
+
+
+def test_each_pair_closes_no_more_than_its_fall_and_nearly_as_much(pair):
+    """Seeded property of the arm-against-arm bounds from a measured pose: no pair's exact clearance falls by more
+    than its bound (``_falls`` with that pose's levers), nor by more than the whole rig's (``_fall``, every pair at
+    once), and each comes within a few % of it somewhere (a bound weakened by more fails)."""
+    rig, plant, models, between = pair
+    check = RigGoalCheck(plant, models, between, plant.home)
+    rng = np.random.default_rng(7)
+    reached = whole_reached = 0.0
+    for _ in range(300):
+        q = rng.uniform(plant.lower, plant.upper) * 0.7
+        ref = check._measured(q)
+        gaps, levers, whole = ref[1], ref[3], ref[4]
+        dq = random_move(rng, plant.n_joints)
+        for s in (0.5, 1.0):
+            fall = check._falls(levers, s * dq[:, None])[:, 0]
+            closed = gaps - between.distances(plant.split(q + s * dq))
+            assert np.all(closed <= fall + 1e-12)
+            assert fall.max() <= _fall(whole, (q + s * dq).tolist()) + 1e-12
+            big = fall > 1e-4
+            reached = max(reached, float((closed[big] / fall[big]).max(initial=0.0)))
+            whole_reached = max(whole_reached, fall.max() / _fall(whole, (q + s * dq).tolist()))
+    assert reached > 0.95 and whole_reached > 0.999
+
+
+def test_a_segment_keeps_half_its_ends_clearances_less_half_its_fall(pair):
+    """Seeded property of the segment bound after a query: along a move whose ends were measured, each pair keeps
+    ``(d0 + d1 - fall) / 2`` (exact clearances densely sampled), and some pair comes within 10 % of it."""
+    rig, plant, models, between = pair
+    check = RigGoalCheck(plant, models, between, plant.home)
+    rng = np.random.default_rng(17)
+    reached = 0.0
+    for _ in range(150):
+        a = rng.uniform(plant.lower, plant.upper) * 0.7
+        b = a + random_move(rng, plant.n_joints)
+        d0, end = check._measured(a)[1], check._measured(b)
+        fall = check._falls(end[3], (a - b)[:, None])[:, 0]
+        low = 0.5 * (d0 + end[1] - fall)
+        s = np.linspace(0, 1, 201)[:, None]
+        least = between.distances(plant.split(a + s * (b - a))).min(axis=0)
+        assert np.all(least >= low - 1e-12)
+        dip = 0.5 * (d0 + end[1]) - least  # how far the middle fell below the ends' mean
+        big = fall > 1e-3
+        reached = max(reached, float((dip[big] / (0.5 * fall[big])).max(initial=0.0)))
+    assert reached > 0.9
+
+
+def test_every_allowed_move_keeps_the_clearance_along_its_whole_path(pair):
+    """Seeded property: a walk toward the other arm with a wide clearance (3 cm); every allowed move, sampled
+    densely by the exact distances, keeps the clearance at its end and at least 3/4 of it between (the check's
+    samples near a contact are half a clearance of travel apart)."""
+    rig, plant, models, _ = pair
+    between = RigClearance(rig, clearance=0.03)
+    rng = np.random.default_rng(13)
+    q = plant.home.copy()
+    check = RigGoalCheck(plant, models, between, q)
+    allowed = blocked = 0
+    nearest = np.inf
+    for _ in range(200):
+        step = rng.normal(0, 0.06, plant.n_joints)
+        step[0] -= 0.04  # drift the waists toward each other so that the arms meet
+        step[6] += 0.04
+        target = np.clip(q + step, plant.lower, plant.upper)
+        if check.allows(q.tolist(), target.tolist()):
+            allowed += 1
+            s = np.linspace(0, 1, 25)[:, None]
+            path = between.min_clearance(plant.split(q + s * (target - q)))
+            assert path[-1] >= 0.03 - 1e-9 and path.min() >= 0.75 * 0.03 - 1e-9
+            assert check.clearance <= path.min() + 1e-9  # the clearance reported is a lower bound
+            q, nearest = target, min(nearest, float(path.min()))
+        else:
+            blocked += 1
+    assert allowed > 50 and blocked >= 3 and nearest < 0.04  # the walk moved, and kept coming near the other arm

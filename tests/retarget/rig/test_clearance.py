@@ -48,3 +48,52 @@ def test_pair_names_name_both_arms_and_links(pair):
     n = len(check.shapes["left"].names) * len(check.shapes["right"].names)
     assert len(check.pair_names) == n and check.distances({a.name: a.arm.home for a in rig.arms}).shape == (n,)
     assert "left:upper_arm/right:gripper" in check.pair_names
+
+
+def finite_speeds(check, rig_arm, Q, joint, h=1e-6):
+    """Each shape's fastest end ``(n_poses, m)`` m/rad when ``joint`` of ``rig_arm`` turns, by finite differences of
+    the shapes' world ends."""
+    shapes = check.shapes[rig_arm.name]
+    moved = Q.copy()
+    moved[:, joint] += h
+    return np.linalg.norm(shapes.world(rig_arm, moved) - shapes.world(rig_arm, Q), axis=-1).max(axis=-1) / h
+
+
+@pytest.mark.parametrize("name", ["wx250s-pair", "aloha"])
+def test_shape_motion_bounds_every_ends_speed_and_is_nearly_reached(name):
+    """Seeded property: no shape's end moves faster per radian of any joint than ``ArmShapes.motion`` says, and for
+    the shoulder and elbow some pose comes within 3 % of it (a bound weakened by more fails)."""
+    rig = load_rig(name)
+    check = RigClearance(rig)
+    rig_arm = rig.arms[0]
+    motion = check.shapes[rig_arm.name].motion
+    Q = np.random.default_rng(23).uniform(rig_arm.arm.lower, rig_arm.arm.upper, (1500, rig_arm.arm.n_joints))
+    reached = np.zeros_like(motion)
+    for joint in range(rig_arm.arm.n_joints):
+        speeds = finite_speeds(check, rig_arm, Q, joint).max(axis=0)
+        assert np.all(speeds <= motion[:, joint] * (1 + 1e-5) + 1e-9), joint
+        reached[:, joint] = np.divide(speeds, motion[:, joint], out=np.zeros_like(speeds), where=motion[:, joint] > 0)
+    assert reached[:, 1:3].max() > 0.97
+
+
+def test_measured_levers_are_the_ends_distances_from_the_joint_axes(pair):
+    """``measure``'s levers against each end's distance from each joint's axis, by the chain's own batch FK and the
+    rig placement; its clearances are ``distances``'."""
+    rig, check = pair
+    rng = np.random.default_rng(29)
+    for _ in range(5):
+        poses = {a.name: rng.uniform(a.arm.lower, a.arm.upper) for a in rig.arms}
+        gaps, levers = check.measure(poses)
+        assert gaps == pytest.approx(check.distances(poses), abs=1e-12)
+        row = 0
+        for rig_arm, joints in zip(rig.arms, check.joint_slices, strict=True):
+            shapes, chain = check.shapes[rig_arm.name], rig_arm.arm.chain
+            frames = rig_arm.placement.matrix @ chain.frames_batch(poses[rig_arm.name][None])[0]
+            ends = shapes.world(rig_arm, poses[rig_arm.name][None])[0]  # (m, 2, 3)
+            for i, frame in enumerate(shapes.frames):
+                for j in range(chain.n):
+                    origin, axis = frames[j + 1, :3, 3], frames[j + 1, :3, :3] @ chain.axes[j]
+                    want = max(np.linalg.norm(np.cross(e - origin, axis)) for e in ends[i]) if j < frame else 0.0
+                    assert levers[row + i, joints.start + j] == pytest.approx(want, abs=1e-12), (i, j)
+                assert not levers[row + i, joints.stop :].any() and not levers[row + i, : joints.start].any()
+            row += len(shapes.names)
