@@ -48,7 +48,7 @@ from urllib.parse import parse_qs, urlsplit
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException
 
 from drivers.control_table import parse_ids
-from retarget.control.clock import MonotonicClock, VirtualClock
+from retarget.control.clock import Clock, MonotonicClock, VirtualClock
 from retarget.errors import ConfigError, RetargetError
 from sim.bus import ScheduledReply, SimBus
 from sim.faults import QUERY_KEYS, Faults
@@ -131,12 +131,13 @@ def registered(name_or_url: str) -> SimBus:
             raise KeyError(f"no SimBus registered as {name!r} (registered: {known})") from None
 
 
-def bus_from_url(url: str, *, port_baud: int | None = None) -> SimBus:
+def bus_from_url(url: str, *, port_baud: int | None = None, clock: Clock | None = None) -> SimBus:
     """Build the bus a ``sim://`` URL describes (the grammar is in the module docstring), or for ``sim://@NAME``
     the registered one.
 
     ``port_baud``: the baud rate the port is opened at (bps), the servos' default for ``sim://?ids=...``
-    without ``baud=``.  ConfigError naming the option on a bad value (``path`` is the URL), KeyError for an
+    without ``baud=``.  ``clock``: the bus runs on it instead of the URL's ``clock=`` (the arms of a rig share one
+    virtual clock).  ConfigError naming the option on a bad value (``path`` is the URL), KeyError for an
     unknown arm, model or registered name.
 
     >>> bus = bus_from_url("sim://?ids=1-3&model=XM430-W350&rdt=0&clock=virtual")
@@ -170,7 +171,8 @@ def bus_from_url(url: str, *, port_baud: int | None = None) -> SimBus:
     clock_name = (last("clock", "real") or "real").lower()
     if clock_name not in ("real", "virtual"):
         raise ConfigError("Expected clock=real or clock=virtual", key="clock", value=clock_name)
-    clock = VirtualClock() if clock_name == "virtual" else MonotonicClock()
+    if clock is None:
+        clock = VirtualClock() if clock_name == "virtual" else MonotonicClock()
     faults = Faults.from_query(query, source=url)
     mount = Mounting.from_query(query, source=url)
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import signal
 import sys
 from collections.abc import Callable, Iterator
@@ -34,8 +35,11 @@ SHUTDOWN_MODES = ("hold", "rest", "off")
 WATCHDOG_MIN_MS, WATCHDOG_MAX_MS = 20.0, 2540.0  #: Bus Watchdog: 1..127 units of 20 ms (drivers.watchdog)
 
 
-def add_bus_arguments(parser: argparse.ArgumentParser | Any, *, shutdown: str = "rest") -> None:
-    """--port, --fast, --shutdown (default ``shutdown``), --telemetry, --json, --progress."""
+def add_bus_arguments(
+    parser: argparse.ArgumentParser | Any, *, shutdown: str = "rest", rig_ports: bool = False
+) -> None:
+    """--port, --fast, --shutdown (default ``shutdown``), --telemetry, --json, --progress.  ``rig_ports``: ``--port``
+    may be repeated (a list, or None): one port, or with ``--rig`` one ``NAME=PORT`` per arm (:func:`one_port`)."""
     helps = {
         "hold": "hold the last goal (default), move to rest then torque off, or torque off",
         "rest": "hold the last goal, move to rest then torque off (default), or torque off",
@@ -44,8 +48,10 @@ def add_bus_arguments(parser: argparse.ArgumentParser | Any, *, shutdown: str = 
     parser.add_argument(
         "--port",
         default=None,
+        action="append" if rig_ports else "store",
         help="serial port or pyserial URL: /dev/ttyUSB0, COM3, socket://h:p, sim://ARM?... "
-        "(default: an in-process simulated bus)",
+        "(default: an in-process simulated bus)"
+        + ("; with --rig NAME=PORT, once per arm to override" if rig_ports else ""),
     )
     parser.add_argument("--fast", action="store_true", help="as fast as possible on a virtual clock (simulator only)")
     parser.add_argument(
@@ -91,6 +97,32 @@ def check_bus_options(args: argparse.Namespace) -> None:
 
 def is_sim_port(port: str | None) -> bool:
     return port is None or port.startswith("sim://")
+
+
+_NAMED_PORT = re.compile(r"^[A-Za-z][A-Za-z0-9_-]{0,31}=")  #: ``left=...``: a rig arm's name (no URL has one)
+
+
+def is_named_port(item: str) -> bool:
+    """Whether a ``--port`` item is ``NAME=PORT`` (a rig arm's port), not a port or URL (whose ``=`` come later).
+
+    >>> is_named_port("right=/dev/ttyUSB1"), is_named_port("sim://wx250s?drop=0.1"), is_named_port("COM3")
+    (True, False, False)
+    """
+    return bool(_NAMED_PORT.match(item))
+
+
+def one_port(items: list[str] | str | None) -> str | None:
+    """The one port of a repeatable ``--port`` without ``--rig``: None, or its single item; a ConfigError naming
+    ``--port`` for a second one or a ``NAME=PORT`` item (an arm's, which needs ``--rig``)."""
+    if items is None or isinstance(items, str):
+        return items
+    for item in items:
+        if is_named_port(item):
+            raise ConfigError("Expected a port; NAME=PORT gives a rig arm's port and needs --rig", key="--port",
+                              value=item)  # fmt: skip
+    if len(items) > 1:
+        raise ConfigError("Expected one --port (one per arm needs --rig and NAME=PORT)", key="--port", value=items[1])
+    return items[0] if items else None
 
 
 #: the signals that stop a run as Ctrl-C does (those this platform has); the exit status is 128 + the number
@@ -211,7 +243,22 @@ def watchdog_option(args: argparse.Namespace, config: LoopConfig | None) -> dict
 
 
 def build_bus(args: argparse.Namespace, arm: Arm, config: LoopConfig | None = None) -> BusSetup:
-    """The driver on ``--port``; for a simulated port, the in-process SimBus and the clock shared with it.
+    """The driver on ``--port``; for a simulated port, the in-process SimBus and the clock shared with it
+    (:func:`port_bus`)."""
+    return port_bus(args.port, arm, args, config)
+
+
+def port_bus(
+    port: str | None,
+    arm: Arm,
+    args: argparse.Namespace,
+    config: LoopConfig | None = None,
+    *,
+    clock: VirtualClock | None = None,
+) -> BusSetup:
+    """The driver of ``arm`` on ``port``, with the other bus options of ``args``; for a simulated port, the SimBus
+    and the clock shared with it.  ``clock``: with ``--fast``, the one virtual clock every simulated arm of a rig
+    runs on (a registered ``sim://@NAME`` bus must already run on it); None: a clock of this bus's own.
 
     No ``--port``: every servo of the arm simulated in process, wire-time model on.  ``sim://…``: the
     simulator the URL describes, built here so the loop can share its clock (``--fast`` adds
@@ -222,26 +269,30 @@ def build_bus(args: argparse.Namespace, arm: Arm, config: LoopConfig | None = No
 
     limits: dict[str, Any] = {**servo_limits(arm, config), **watchdog_option(args, config)}
     recover = bool(getattr(args, "recover", False))
-    port: str | None = args.port
-    if not is_sim_port(port):
-        clock: Clock = MonotonicClock()
-        return BusSetup(DynamixelBus(arm, port, shutdown=args.shutdown, clock=clock, recover=recover, **limits), clock)
+    if port is not None and not is_sim_port(port):
+        wall: Clock = MonotonicClock()
+        return BusSetup(DynamixelBus(arm, port, shutdown=args.shutdown, clock=wall, recover=recover, **limits), wall)
 
     name = None
     if port is None:
         simbus = sim.SimBus.from_arm(
-            arm, clock=VirtualClock() if args.fast else MonotonicClock(), faults=sim.Faults(wire=True)
+            arm, clock=(clock or VirtualClock()) if args.fast else MonotonicClock(), faults=sim.Faults(wire=True)
         )
     elif port.startswith("sim://@"):
         try:
             simbus = bus_from_url(port)
         except KeyError as exc:  # no bus registered under that name in this process
             raise ConfigError(str(exc.args[0]), key="--port", value=port) from exc
+    elif args.fast and clock is not None:
+        simbus = bus_from_url(port, clock=clock)
     else:
         url = port + (("&" if "?" in port else "?") + "clock=virtual" if args.fast else "")
         simbus = bus_from_url(url)
     if args.fast and not isinstance(simbus.clock, VirtualClock):
         raise ConfigError("--fast needs a simulated bus on a virtual clock", key="--port", value=port)
+    if args.fast and clock is not None and simbus.clock is not clock:
+        raise ConfigError("--fast runs every simulated arm on one virtual clock; this registered bus has another",
+                          key="--port", value=port)  # fmt: skip
     if port is None or not port.startswith("sim://@"):
         port = sim.attach(simbus)
         name = port  # the URL: sim.unregister takes it as it is

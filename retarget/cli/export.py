@@ -18,13 +18,14 @@ import sys
 from collections.abc import Callable
 from typing import Any
 
-from retarget.cli._rig_run import add_rig_option, export_rig
+from retarget.cli._rig_run import add_rig_option, export_rig, load_rig_inputs
 from retarget.cli.replay import (
     Inputs,
     add_clip_arguments,
     add_mapping_arguments,
     load_inputs,
     loop_config,
+    mapping_overrides,
     write_trajectory,
 )
 from retarget.control import ControlLoop, TickRecord
@@ -73,8 +74,9 @@ def offline_loop(args: argparse.Namespace) -> tuple[Inputs, ControlLoop]:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.rig is not None:
-        return export_rig(args)
+    if args.rig is not None:  # the rig module takes this module's options as values (it never imports replay)
+        rig_inputs = load_rig_inputs(args, mapping_overrides(args))
+        return export_rig(args, rig_inputs, loop_config(args, rig_inputs.motion), write_trajectory)
 
     inputs, loop = offline_loop(args)
     q0 = loop.initial_pose()

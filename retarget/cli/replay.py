@@ -33,11 +33,14 @@ from retarget.cli._bus import (
     build_bus,
     check_bus_options,
     failure_summary,
+    one_port,
     say,
     signals_stop,
 )
 from retarget.cli._gripper import add_replay_option as add_gripper_option
 from retarget.cli._gripper import clip_track, gripper_on_tick
+from retarget.cli._rig_replay import check_rig_replay, replay_rig
+from retarget.cli._rig_run import add_rig_option, load_rig_inputs
 from retarget.cli._view import add_view_arguments, check_view_options, forward, live_view, serve_web
 from retarget.collision import CollisionModel
 from retarget.control import ControlLoop, LoopConfig, TickRecord
@@ -70,6 +73,8 @@ examples:
   retarget replay dance.bvh --keep-out sphere:0.3,0,0.2,0.05 --clearance 15   stay 15 mm clear of a ball
   retarget replay pinch.bvh --arm vx300s --telemetry run.csv   the gripper follows the hand (thumb-index pinch)
   retarget replay dance.bvh --arm vx300s --gripper close        or a fixed closure, or --gripper track.csv
+  retarget replay dance.bvh --rig aloha --fast     both arms of a rig, each on its rig file's port (sim://)
+  retarget replay dance.bvh --rig aloha --port left=/dev/ttyUSB0 --port right=/dev/ttyUSB1   a rig on hardware
 """
 
 
@@ -267,9 +272,10 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument(
         "--dry-run", action="store_true", help="solve every tick without any bus (from the first pose, no lead-in)"
     )
-    add_bus_arguments(parser, shutdown="rest")
+    add_bus_arguments(parser, shutdown="rest", rig_ports=True)
     add_mapping_arguments(parser)
     add_view_arguments(parser, live=True)
+    add_rig_option(parser)
     return parser
 
 
@@ -291,21 +297,30 @@ def _progress_printer(loop: ControlLoop) -> Callable[[TickRecord], None]:
     return show
 
 
-def run(args: argparse.Namespace) -> int:
+def replay_config(args: argparse.Namespace, motion: Motion, **extra: Any) -> LoopConfig:
+    """The loop's config of a replay: the shared options, ``--loop``, ``--max-ticks`` and ``--lead-in``."""
+    return loop_config(
+        args,
+        motion,
+        loop=args.loop,
+        max_ticks=optional_count(args.max_ticks, option="--max-ticks"),
+        lead_in_speed=number(args.lead_in, option="--lead-in"),
+        **extra,
+    )
 
+
+def run(args: argparse.Namespace) -> int:
+    if args.rig is not None:  # every arm of a rig (the rig modules take this module's options as values)
+        check_rig_replay(args)
+        rig_inputs = load_rig_inputs(args, mapping_overrides(args))
+        return replay_rig(args, rig_inputs, replay_config(args, rig_inputs.motion))
+    args.port = one_port(args.port)
     check_bus_options(args)
     check_view_options(args)
     if args.dry_run and args.port is not None:
         raise ConfigError("--dry-run uses no bus; drop --port", key="--port", value=args.port)
     inputs = load_inputs(args)
-    config = loop_config(
-        args,
-        inputs.motion,
-        loop=args.loop,
-        max_ticks=optional_count(args.max_ticks, option="--max-ticks"),
-        lead_in_speed=number(args.lead_in, option="--lead-in"),
-        collision=inputs.collision,
-    )
+    config = replay_config(args, inputs.motion, collision=inputs.collision)
     side = MappingConfig.from_table(inputs.arm.mapping, path=inputs.arm.source, overrides={"side": args.side}).side
     gripper = clip_track(args.gripper, inputs.arm, inputs.motion, side.value)  # before the bus: errors first
     setup = None if args.dry_run else build_bus(args, inputs.arm, config)
