@@ -38,6 +38,7 @@ from retarget.cli._bus import (
     build_bus,
     check_bus_options,
     failure_summary,
+    one_port,
     say,
     signals_stop,
 )
@@ -77,6 +78,9 @@ examples:
   retarget teleop --to 0.3,0,0.2 --keep-out box:0.25,-0.05,0,0.35,0.05,0.1   a box the arm keeps out of
   retarget teleop --arm vx300s --to 0.3,0,0.2 --gripper close    and close the gripper
   printf '0.3 0 0.2 g=0\\ng=1\\n' | retarget teleop --arm vx300s --stdin --fast   g: gripper 0 (open)..1 (closed)
+  retarget teleop --rig aloha --to "left 0.3 0.35 0.2 right 0.3 -0.35 0.2" --fast   both arms, world frame
+  printf 'left 0.3 0.35 0.2\\nright 0.3 -0.3 0.25\\n' | retarget teleop --rig wx250s-pair --stdin --dry-run
+  retarget teleop --rig aloha --udp 9000 --port left=/dev/ttyUSB0 --port right=/dev/ttyUSB1
 """
 
 
@@ -137,7 +141,14 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     b.add_argument("--rate", default="100", metavar="HZ", help="control ticks per second (default 100)")
     b.add_argument("--velocity-scale", default="1", metavar="F", help="fraction of each joint's max speed (default 1)")
     b.add_argument("--max-ticks", default=None, metavar="N", help="stop after N ticks")
-    add_bus_arguments(b, shutdown="hold")
+    b.add_argument(
+        "--rig",
+        default=None,
+        metavar="NAME|FILE",
+        help="every arm of a rig (aloha, wx250s-pair, a file); 'left x y z right x y z', world frame",
+    )
+    b.add_argument("--dry-run", action="store_true", help="with --rig: no bus, a virtual clock, from the rest poses")
+    add_bus_arguments(b, shutdown="hold", rig_ports=True)
     add_view_arguments(b, live=True)
     return parser
 
@@ -244,6 +255,10 @@ def _name(args: argparse.Namespace) -> str:
 
 def run(args: argparse.Namespace) -> int:
 
+    ports = args.port
+    args.port = None if args.rig is not None else one_port(ports)  # --rig: NAME=PORT per arm
+    if args.dry_run and args.rig is None:
+        raise ConfigError("--dry-run goes with --rig (one arm: no --port runs a simulated bus)", key="--dry-run")
     opts = _check_options(args)
     check_view_options(args)
     config = LoopConfig(
@@ -252,6 +267,10 @@ def run(args: argparse.Namespace) -> int:
         max_ticks=optional_count(args.max_ticks, option="--max-ticks"),
         ik_tolerance=min(1e-3, opts["tolerance"] / 2),  # a tight --tolerance tightens the IK too
     )
+    if args.rig is not None:
+        from retarget.cli._rig_teleop import run_rig
+
+        return run_rig(argparse.Namespace(**{**vars(args), "port": ports}), opts, config)
     if args.interactive and not (sys.stdin.isatty() and sys.stdout.isatty()):
         raise ConfigError("--interactive needs a terminal on stdin and stdout", key="--interactive", value=True)
     arm = load_arm_option(args)

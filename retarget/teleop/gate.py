@@ -60,6 +60,8 @@ __all__ = [
     "TargetBounds",
     "TargetGate",
     "TargetRejected",
+    "json_values",
+    "message_of",
     "parse_message",
     "step_toward",
 ]
@@ -113,6 +115,12 @@ def parse_message(data: str | bytes, *, max_bytes: int = MAX_MESSAGE_BYTES, key:
             raise TargetRejected(Reject.MALFORMED, "Expected 'x y z' or 'x y z roll pitch yaw' numbers", key=key,
                                  value=text)  # fmt: skip
         values = [float(t) for t in tokens]
+    return message_of(values, key=key, text=text)
+
+
+def message_of(values: Sequence[float], *, key: str = "target", text: object = None) -> Message:
+    """x, y, z (and roll, pitch, yaw in degrees) -> :class:`Message`; ``NON_FINITE`` or ``MALFORMED`` (an angle out
+    of range) naming ``key`` and ``text`` (the message as it came).  A helper of the rig's messages too."""
     if not all(math.isfinite(v) for v in values):
         raise TargetRejected(Reject.NON_FINITE, "Expected finite numbers", key=key, value=text)
     if not all(abs(v) <= MAX_RPY_DEG for v in values[3:]):
@@ -129,6 +137,12 @@ def _json_values(text: str, key: str) -> list[float]:
         obj = json.loads(text)
     except (ValueError, RecursionError):
         raise TargetRejected(Reject.MALFORMED, "Expected a JSON object", key=key, value=text) from None
+    return json_values(obj, key=key, text=text)
+
+
+def json_values(obj: object, *, key: str = "target", text: object = None) -> list[float]:
+    """x, y, z (and roll, pitch, yaw in degrees) of a decoded JSON object ``obj``; ``MALFORMED`` or ``NON_FINITE``
+    naming ``key`` and ``text`` (the message as it came).  A helper of the rig's messages too."""
     if not isinstance(obj, dict) or not {"x", "y", "z"} <= obj.keys() or not obj.keys() <= _JSON_KEYS:
         raise TargetRejected(Reject.MALFORMED, 'Expected {"x": .., "y": .., "z": ..} (optional "rpy": [r, p, y])',
                              key=key, value=text)  # fmt: skip
