@@ -75,7 +75,11 @@ def check_rig_replay(args: argparse.Namespace) -> None:
     check_bus_options(argparse.Namespace(**{**vars(args), "port": None}))  # the ports are checked per arm below
     if args.dry_run and args.port:
         raise ConfigError("--dry-run uses no bus; drop --port", key="--port", value=args.port[0])
-    rig = ported(load_rig(args.rig), args.port)
+    check_fast(args, ported(load_rig(args.rig), args.port))
+
+
+def check_fast(args: argparse.Namespace, rig: Rig) -> None:
+    """``--fast`` needs every arm of ``rig`` on a simulated bus: a ConfigError naming the first real port."""
     if args.fast:
         for a in rig.arms:
             if not is_sim_port(a.port):

@@ -26,19 +26,17 @@ import threading
 from collections.abc import Callable, Iterator
 from typing import Any
 
-import sim
-from drivers import DynamixelBus
 from retarget.cli import EXIT_UNREACHED, print_json
 from retarget.cli._arm import DEFAULT_ARM, collision_model
-from retarget.cli._bus import Stopped, failure_summary, is_sim_port, say, servo_limits, signals_stop, watchdog_option
-from retarget.cli.rig import parse_ports
+from retarget.cli._bus import Stopped, failure_summary, say, signals_stop
+from retarget.cli._rig_replay import check_fast, open_buses, ported, release, rig_clock
 from retarget.control.bus import Bus, connected
-from retarget.control.clock import Clock, MonotonicClock, VirtualClock
+from retarget.control.clock import MonotonicClock, VirtualClock
 from retarget.control.loop import LoopConfig, TickRecord
 from retarget.control.summary import RunSummary
 from retarget.errors import BusError, ConfigError
 from retarget.mapping.filter import OneEuro
-from retarget.rig import Rig, RigBus, RigGate, RigInput, RigPlant, RigStdinSource, RigUdpSource, load_rig
+from retarget.rig import RigBus, RigGate, RigInput, RigPlant, RigStdinSource, RigUdpSource, load_rig
 from retarget.rig.teleop import RigTeleopResult, rig_followers, run_rig_teleop
 from retarget.teleop.follower import Follower
 from retarget.teleop.sources import Source, parse_address
@@ -85,56 +83,6 @@ def _refuse(args: argparse.Namespace) -> None:
 # TODO(lead): a local copy of the rig's bus setup; merge with retarget.cli._rig_replay.open_buses/rig_clock.
 
 
-def _loop_clock(args: argparse.Namespace, rig: Rig) -> Clock:
-    """The clock every arm's simulated bus and the loop share: that of a registered ``sim://@NAME`` bus, else a
-    virtual one (``--fast``) or wall time."""
-    for a in rig.arms:
-        if a.port.startswith("sim://@"):
-            try:
-                return sim.registered(a.port).clock
-            except KeyError as exc:
-                raise ConfigError(str(exc.args[0]), key="--port", value=f"{a.name}={a.port}") from exc
-    return VirtualClock() if args.fast else MonotonicClock()
-
-
-def _open_buses(args: argparse.Namespace, rig: Rig, config: LoopConfig) -> tuple[dict[str, Bus], Clock, list[str]]:
-    """Each arm's driver on its port (not connected), the loop's clock, and the simulated buses this run attached
-    (to unregister).  Every simulated arm runs on the loop's clock; ``--fast`` needs them all simulated."""
-    clock = _loop_clock(args, rig)
-    if args.fast and not isinstance(clock, VirtualClock):
-        raise ConfigError("--fast needs simulated buses on a virtual clock", key="--port")
-    buses: dict[str, Bus] = {}
-    attached: list[str] = []
-    try:
-        for a in rig.arms:
-            port, where = a.port, f"{a.name}={a.port}"
-            if is_sim_port(port):
-                if port.startswith("sim://@"):
-                    simbus = sim.registered(port)
-                elif "?" not in port and port.removeprefix("sim://").strip("/"):
-                    simbus = sim.SimBus.from_arm(port.removeprefix("sim://").strip("/"), clock=clock)
-                else:
-                    raise ConfigError("Expected sim://ARM or a registered sim://@NAME with --rig", key="--port",
-                                      value=where)  # fmt: skip
-                same = simbus.clock is clock or (isinstance(simbus.clock, MonotonicClock) and not args.fast)
-                if not same:
-                    raise ConfigError("Expected every arm's simulated bus on one clock", key="--port", value=where)
-                if not port.startswith("sim://@"):
-                    port = sim.attach(simbus)
-                    attached.append(port)
-            elif args.fast:
-                raise ConfigError("--fast needs the simulated bus (a sim:// port), not a real port", key="--port",
-                                  value=where)  # fmt: skip
-            limits: dict[str, Any] = {**servo_limits(a.arm, config), **watchdog_option(args, config)}
-            buses[a.name] = DynamixelBus(a.arm, port, shutdown=args.shutdown, clock=clock,
-                                         recover=bool(args.recover), **limits)  # fmt: skip
-    except BaseException:
-        for url in attached:
-            sim.unregister(url)
-        raise
-    return buses, clock, attached
-
-
 # ------------------------------------------------------------------------------------------ the run
 
 
@@ -178,16 +126,13 @@ def _maybe_connected(bus: Bus | None) -> Iterator[None]:
 def run_rig(args: argparse.Namespace, opts: dict[str, Any], config: LoopConfig) -> int:
     """``retarget teleop --rig``: ``opts`` the option values checked by one arm's teleop, ``config`` its loop."""
     _refuse(args)
-    rig = load_rig(args.rig)
-    if args.port:
-        rig = rig.with_ports(parse_ports(args.port))
+    rig = ported(load_rig(args.rig), args.port)
+    check_fast(args, rig)
     models = {a.name: collision_model(args, a.arm) for a in rig.arms}
-    buses: dict[str, Bus] = {}
-    attached: list[str] = []
-    clock: Clock = MonotonicClock() if args.udp is not None else VirtualClock()  # a dry run: live UDP in real time
-    if not args.dry_run:
-        buses, clock, attached = _open_buses(args, rig, config)
-    bus = RigBus(buses) if buses else None
+    setups = {} if args.dry_run else open_buses(args, rig, config)
+    # a dry run on virtual time, but live UDP in real time
+    clock = rig_clock(args, setups) if setups else MonotonicClock() if args.udp is not None else VirtualClock()
+    bus = RigBus({name: s.bus for name, s in setups.items()}) if setups else None
     reader: Source | None = None
     stop = threading.Event()
     stopped = Stopped()
@@ -219,8 +164,7 @@ def run_rig(args: argparse.Namespace, opts: dict[str, Any], config: LoopConfig) 
     finally:
         if reader is not None:
             reader.close()
-        for url in attached:
-            sim.unregister(url)
+        release(setups)
     _report(args, result)
     if result.summary.interrupted:
         return stopped.exit_status
