@@ -4,7 +4,9 @@ The clip is solved as ``retarget export`` solves it (no bus: IK warm-started tic
 and velocity limits applied, from the first target's solution), then logged to Rerun: a native viewer by
 default, ``--record`` an .rrd file, ``--web`` the browser viewer on 127.0.0.1; ``--png`` draws a contact sheet
 of evenly spaced moments instead (matplotlib, no GUI).  ``retarget view run.rrd --web`` serves a saved recording
-to the browser.  Needs ``pip install 'retarget[viz]'``.
+to the browser.  ``--rig NAME|FILE`` shows every arm of a rig at its base pose in the rig's world frame, the
+skeleton placed there as the rig's mapping places it (the clip solved as ``retarget export --rig`` solves it), with
+the same outputs.  Needs ``pip install 'retarget[viz]'``.
 """
 
 from __future__ import annotations
@@ -14,11 +16,14 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from retarget.cli._rig_run import RigInputs, add_rig_option, load_rig_inputs, refuse_arm_options, rig_replay
 from retarget.cli._view import add_view_arguments, outputs, serve_until_interrupted, start_web
 from retarget.cli.export import offline_loop
-from retarget.cli.replay import Inputs, add_clip_arguments, add_mapping_arguments
+from retarget.cli.replay import Inputs, add_clip_arguments, add_mapping_arguments, loop_config, mapping_overrides
 from retarget.control import TickRecord
+from retarget.control.clock import VirtualClock
 from retarget.errors import ConfigError
+from retarget.rig import RigReplay
 
 EXAMPLES = """\
 examples:
@@ -30,6 +35,8 @@ examples:
   retarget view dance.rrd --web                   serve a saved recording to the browser the same way
   retarget view dance.bvh --layout overlay        the human drawn in the robot's frame, wrist on the target
   retarget view dance.bvh --side left --start 2 --end 6 --png sheet.png   a contact sheet, no GUI
+  retarget view dance.bvh --rig aloha --png rig.png   both arms of a rig in its world frame, each hand on its arm
+  retarget view dance.bvh --rig wx250s-pair --record pair.rrd   the rig's timeline (also --web, or native)
 """
 
 
@@ -43,12 +50,16 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     )
     add_clip_arguments(parser)
     parser.add_argument(
-        "--layout", default="side", choices=("side", "overlay"), help="human beside the robot (default) or in its frame"
+        "--layout",
+        default=None,
+        choices=("side", "overlay"),
+        help="human beside the robot (default) or in its frame (--rig: always in the rig's frame)",
     )
     parser.add_argument("--png", default=None, metavar="PNG", help="draw a contact sheet of the clip instead")
     parser.add_argument("--moments", default="6", metavar="N", help="moments on the contact sheet (default 6)")
     add_view_arguments(parser, live=False)
     add_mapping_arguments(parser)
+    add_rig_option(parser)
     return parser
 
 
@@ -61,9 +72,24 @@ def solve(args: argparse.Namespace) -> tuple[Inputs, list[TickRecord]]:
     return inputs, records
 
 
+def solve_rig(args: argparse.Namespace) -> tuple[RigInputs, RigReplay, list[TickRecord]]:
+    """The rig's ticks as ``retarget export --rig`` computes them: :class:`~retarget.rig.RigReplay` dry run on a
+    virtual clock from every arm's first pose (``--no-look-ahead`` is honoured here)."""
+    inputs = load_rig_inputs(args, mapping_overrides(args))
+    replay = rig_replay(
+        inputs, loop_config(args, inputs.motion), clock=VirtualClock(), look_ahead=not args.no_look_ahead
+    )
+    records: list[TickRecord] = []
+    replay.on_tick = records.append
+    replay.run(None, q_start=replay.initial_pose())
+    return inputs, replay, records
+
+
 def run(args: argparse.Namespace) -> int:
     from retarget.view import require
 
+    if args.rig is not None:
+        return _run_rig(args)
     if args.clip is not None and Path(args.clip).suffix.lower() == ".rrd":
         return _serve_recording(args)
     if args.png is not None:
@@ -75,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
     from retarget.view.columns import TickColumns
     from retarget.view.scene import Layout, Scene
 
-    scene = Scene.for_clip(inputs.motion, inputs.arm, inputs.targets, layout=Layout(args.layout))
+    scene = Scene.for_clip(inputs.motion, inputs.arm, inputs.targets, layout=Layout(args.layout or "side"))
     columns = TickColumns.of(records)
     if args.png is not None:
         from retarget.view.sheet import contact_sheet
@@ -92,6 +118,51 @@ def run(args: argparse.Namespace) -> int:
             log_ticks(rec, scene, columns)
         where = f" -> {out.record}" if out.record is not None else ""
         print(f"retarget: {len(records)} ticks of {inputs.clip.name} on {inputs.arm.name}{where}", file=sys.stderr)
+        if web is not None:
+            serve_until_interrupted(web)  # until Ctrl-C: exit 130
+    finally:
+        if web is not None:
+            web.close()
+    return 0
+
+
+def _run_rig(args: argparse.Namespace) -> int:
+    """``retarget view --rig``: the contact sheet or the Rerun outputs of the clip on every arm of the rig."""
+    from retarget.view import require
+
+    refuse_arm_options(args)
+    if args.clip is not None and Path(args.clip).suffix.lower() == ".rrd":
+        raise ConfigError("Expected a BVH clip with --rig (a saved recording is served without --rig)", key="--rig",
+                          value=args.rig)  # fmt: skip
+    if args.layout == "side":
+        raise ConfigError("Expected no --layout side with --rig (the rig's view draws the skeleton in its frame)",
+                          key="--layout", value=args.layout)  # fmt: skip
+    if args.png is not None:
+        require("--png", "matplotlib")
+        moments = _moments(args.moments)
+    else:
+        out = outputs(args, spawn=True)
+    inputs, replay, records = solve_rig(args)
+    from retarget.view.rig import RigScene, arm_columns
+
+    table = any(m.world.table for m in inputs.models.values())
+    scene = RigScene.for_clip(inputs.motion, inputs.rig, inputs.targets, table=table)
+    columns = arm_columns(records, replay.arm_record, inputs.rig.names)
+    what = f"{len(records)} ticks of {inputs.clip.name} on rig {inputs.rig.name}"
+    if args.png is not None:
+        from retarget.view.rig_sheet import rig_contact_sheet
+
+        rig_contact_sheet(scene, columns, Path(args.png), moments=moments, title=inputs.clip.name)
+        print(f"retarget: {what} -> {args.png}", file=sys.stderr)
+        return 0
+    from retarget.view.rerun_log import log_rig_ticks
+    from retarget.view.sinks import open_recording
+
+    web = start_web(out)
+    try:
+        with open_recording(scene, out, name=f"{inputs.clip.name} on {inputs.rig.name}", web=web) as rec:
+            log_rig_ticks(rec, scene, columns)
+        print(f"retarget: {what}" + (f" -> {out.record}" if out.record is not None else ""), file=sys.stderr)
         if web is not None:
             serve_until_interrupted(web)  # until Ctrl-C: exit 130
     finally:

@@ -6,7 +6,9 @@ pictures without a GUI (matplotlib).  Needs the optional extra ``pip install 're
 - :mod:`~retarget.view.rerun_log`: log a scene and ticks to a Rerun recording;
 - :mod:`~retarget.view.live`: a background logger fed by the control loop's ``on_tick`` (bounded queue);
 - :mod:`~retarget.view.sinks`: where a recording goes (a file, the browser viewer on loopback, a native viewer);
-- :mod:`~retarget.view.plot`: a telemetry CSV as a PNG; :mod:`~retarget.view.sheet`: a contact sheet PNG.
+- :mod:`~retarget.view.plot`: a telemetry CSV as a PNG; :mod:`~retarget.view.sheet`: a contact sheet PNG;
+- :mod:`~retarget.view.rig`: a rig's arms at their base poses and the skeleton in its world, pure numpy;
+  :mod:`~retarget.view.rig_sheet`: its contact sheet (the Rerun side is in ``rerun_log``).
 
 Only the modules that draw import ``rerun`` or ``matplotlib``, and only when used: :func:`require` checks
 for them first and raises one clear error naming the extra.

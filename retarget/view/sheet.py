@@ -23,10 +23,11 @@ from matplotlib.axes import Axes  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
+from retarget.arm.model import Arm  # noqa: E402
 from retarget.view.columns import TickColumns  # noqa: E402
 from retarget.view.scene import Layout, Scene, frame_index, project, robot_points  # noqa: E402
 
-__all__ = ["contact_sheet", "moment_ticks", "stadium"]
+__all__ = ["contact_sheet", "draw_arm", "layout_sheet", "moment_ticks", "stadium"]
 
 HUMAN, CHAIN, ROBOT, TARGET, RAW, GRID = "#9a9aa4", "#ff8c00", "#2a6edc", "#dc1e1e", "#e000e0", "#d8d8d8"
 AXES_COLORS = ("#e62828", "#28be28", "#285af0")
@@ -73,23 +74,47 @@ def contact_sheet(scene: Scene, cols: TickColumns, path: Path, *, moments: int =
     """Draw the sheet to ``path`` (PNG), about 1000 px wide."""
     m = _moments(scene, cols, moment_ticks(len(cols), moments))
     pictures = _frames(scene, cols, m)
-    n, k = len(m.rows), per_row(len(m.rows))
+    fig, cells, strips = layout_sheet(pictures, cols.clip_time[m.rows])
+    for i, cell in enumerate(cells):
+        for ax, f in cell:
+            _picture(ax, scene, cols, m, i, human=f.human, robot=f.robot)
+    angle_strip(strips[0], scene.arm, cols, m.rows)
+    layout = "the skeleton beside the arm, same scale" if scene.layout is Layout.SIDE else "the skeleton in its frame"
+    height = fig.get_figheight()
+    fig.text(0.5, 1 - 0.22 / height, f"{title} on {scene.arm.title or scene.arm.name}: {layout}",
+             ha="center", va="center", fontsize=11)  # fmt: skip
+    clamped = m.raw is not None and bool(cols.clamped[m.rows].any())
+    legend(fig, 1 - 0.5 / height, _handles(clamped=clamped))
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+
+
+def layout_sheet(
+    pictures: list[Frame], times: np.ndarray, *, strips: int = 1, strip_height: float = 1.6
+) -> tuple[Figure, list[list[tuple[Axes, Frame]]], list[Axes]]:
+    """The sheet's figure, about 1000 px wide: a title and legend band on top, then the moments (``times``
+    ``(n,)`` s, lettered) up to four to a row, each as the ``pictures`` side by side at one scale (inches per
+    metre), then ``strips`` plots over the clip's time, one under the other.  Returns the figure, each moment's
+    (axes, picture) pairs with the view limits set, and the strips' axes (top first)."""
+    n, k = len(times), per_row(len(times))
     n_rows = math.ceil(n / k)
-    left, right, gap, head, label, strip, foot = 0.25, 0.25, 0.3, 0.75, 0.28, 1.6, 0.85  # inches
+    left, right, gap, head, label, foot = 0.25, 0.25, 0.3, 0.75, 0.28, 0.85  # inches
     cell_w = (WIDTH - left - right - gap * (k - 1)) / k
     span = sum(f.width for f in pictures) + PAD * (len(pictures) - 1)
     height_m = max(f.height for f in pictures)
     cell_h = min(0.7 * cell_w, 3.6)  # the sheet's size depends on the number of moments only
     scale = min(cell_w / span, cell_h / height_m)  # inches per metre, every picture
-    height = head + n_rows * (label + cell_h) + 0.35 + strip + foot
+    height = head + n_rows * (label + cell_h) + 0.35 + strips * (strip_height + foot)
     fig = plt.figure(figsize=(WIDTH, height), dpi=DPI)
+    cells: list[list[tuple[Axes, Frame]]] = []
     for i in range(n):
         r, c = divmod(i, k)
         x0 = left + c * (cell_w + gap) + (cell_w - span * scale) / 2
         top = height - head - r * (label + cell_h)
         fig.text((left + c * (cell_w + gap) + cell_w / 2) / WIDTH, (top - label / 2) / height,
-                 f"{_letter(i)}   t = {cols.clip_time[m.rows[i]]:.2f} s", ha="center", va="center", fontsize=9,
+                 f"{letter(i)}   t = {times[i]:.2f} s", ha="center", va="center", fontsize=9,
                  weight="bold")  # fmt: skip
+        cells.append([])
         for f in pictures:
             w = f.width * scale
             bottom = top - label - (cell_h + height_m * scale) / 2
@@ -100,15 +125,10 @@ def contact_sheet(scene: Scene, cols: TickColumns, path: Path, *, moments: int =
             ax.set_ylim(y_lo, y_lo + height_m)
             ax.set_aspect("equal", adjustable="datalim")
             ax.axis("off")
-            _picture(ax, scene, cols, m, i, human=f.human, robot=f.robot)
-    strip_ax = fig.add_axes((0.75 / WIDTH, foot / height, (WIDTH - 0.95) / WIDTH, strip / height))
-    _angles(strip_ax, scene, cols, m.rows)
-    layout = "the skeleton beside the arm, same scale" if scene.layout is Layout.SIDE else "the skeleton in its frame"
-    fig.text(0.5, 1 - 0.22 / height, f"{title} on {scene.arm.title or scene.arm.name}: {layout}",
-             ha="center", va="center", fontsize=11)  # fmt: skip
-    _legend(fig, 1 - 0.5 / height, clamped=m.raw is not None and bool(cols.clamped[m.rows].any()))
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
+            cells[-1].append((ax, f))
+    axes = [fig.add_axes((0.75 / WIDTH, (foot + (strips - 1 - j) * (strip_height + foot)) / height,
+                          (WIDTH - 0.95) / WIDTH, strip_height / height)) for j in range(strips)]  # fmt: skip
+    return fig, cells, axes
 
 
 def stadium(ends: np.ndarray, radius: float, *, segments: int = 10) -> np.ndarray:
@@ -143,7 +163,8 @@ def floor_grid(points: np.ndarray, *, step: float = GRID_STEP) -> list[np.ndarra
     return [line.round(9) + 0.0 for line in lines]
 
 
-def _letter(i: int) -> str:
+def letter(i: int) -> str:
+    """The label of moment ``i``: A, B, ... Z, then numbers."""
     return string.ascii_uppercase[i] if i < 26 else str(i + 1)
 
 
@@ -168,7 +189,7 @@ def _robot_extent(m: _Moments, cols: TickColumns) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class _Frame:
+class Frame:
     """One picture of every moment: its size (projected metres, the same at every moment) and where it looks."""
 
     width: float
@@ -178,7 +199,7 @@ class _Frame:
     robot: bool  #: draws the robot
 
 
-def _frames(scene: Scene, cols: TickColumns, m: _Moments) -> list[_Frame]:
+def _frames(scene: Scene, cols: TickColumns, m: _Moments) -> list[Frame]:
     """The skeleton's and the robot's pictures (side by side), or one of both (overlay, or no skeleton).  The
     robot's (and the overlay's) looks at the same box every moment; the skeleton's pans with the human, which
     stands on its box's bottom edge, centred across."""
@@ -187,19 +208,23 @@ def _frames(scene: Scene, cols: TickColumns, m: _Moments) -> list[_Frame]:
     robot = np.concatenate([robot, *floor_grid(robot)])
     if m.human is None or scene.layout is Layout.OVERLAY:
         both = robot if m.human is None else np.concatenate([robot, m.human.reshape(-1, 3)])
-        return [_fixed(both, radius, len(m.rows), human=m.human is not None)]
+        return [fixed_frame(both, radius, len(m.rows), human=m.human is not None)]
     flat = [project(np.concatenate([h, *floor_grid(h)]), **VIEW) for h in m.human]
     lo = np.stack([f.min(axis=0) for f in flat]) - PAD
     hi = np.stack([f.max(axis=0) for f in flat]) + PAD
     width, height = float((hi - lo)[:, 0].max()), float((hi - lo)[:, 1].max())
     corners = np.stack([(lo[:, 0] + hi[:, 0]) / 2 - width / 2, lo[:, 1]], axis=-1)
-    return [_Frame(width, height, corners, True, False), _fixed(robot, radius, len(m.rows), human=False)]
+    return [Frame(width, height, corners, True, False), fixed_frame(robot, radius, len(m.rows), human=False)]
 
 
-def _fixed(points: np.ndarray, radius: float, n: int, *, human: bool) -> _Frame:
-    flat = project(points, **VIEW)
+def fixed_frame(
+    points: np.ndarray, radius: float, n: int, *, human: bool, view: dict[str, float] | None = None
+) -> Frame:
+    """A picture that looks at the same box at each of ``n`` moments: the projection of ``points`` ``(m, 3)``
+    (display frame, metres), widened by ``radius`` and :data:`PAD`."""
+    flat = project(points, **(view or VIEW))
     lo, hi = flat.min(axis=0) - radius - PAD, flat.max(axis=0) + radius + PAD
-    return _Frame(float(hi[0] - lo[0]), float(hi[1] - lo[1]), np.tile(lo, (n, 1)), human, True)
+    return Frame(float(hi[0] - lo[0]), float(hi[1] - lo[1]), np.tile(lo, (n, 1)), human, True)
 
 
 def _picture(ax: Axes, scene: Scene, cols: TickColumns, m: _Moments, i: int, *, human: bool, robot: bool) -> None:
@@ -210,16 +235,17 @@ def _picture(ax: Axes, scene: Scene, cols: TickColumns, m: _Moments, i: int, *, 
         _robot(ax, scene, cols, m, i, row)
 
 
-def _lines(ax: Axes, lines: list[np.ndarray]) -> None:
+def grid_lines(ax: Axes, lines: list[np.ndarray], *, view: dict[str, float] | None = None) -> None:
+    """The floor grid's ``lines`` (each ``(2, 3)`` metres), light, under everything else."""
     for line in lines:
-        p = project(line, **VIEW)
+        p = project(line, **(view or VIEW))
         ax.plot(p[:, 0], p[:, 1], color=GRID, lw=0.6, zorder=0.1)
 
 
 def _skeleton(ax: Axes, scene: Scene, points: np.ndarray) -> None:
     assert scene.skeleton is not None
     if scene.layout is Layout.SIDE:  # in the overlay the human is in the robot's frame, not on its floor
-        _lines(ax, floor_grid(points))
+        grid_lines(ax, floor_grid(points))
     p = project(points, **VIEW)
     for a, b in scene.skeleton.bones:
         ax.plot(p[[a, b], 0], p[[a, b], 1], color=HUMAN, lw=2.0, solid_capstyle="round")
@@ -228,58 +254,83 @@ def _skeleton(ax: Axes, scene: Scene, points: np.ndarray) -> None:
 
 
 def _robot(ax: Axes, scene: Scene, cols: TickColumns, m: _Moments, i: int, row: int) -> None:
-    _lines(ax, floor_grid(_robot_extent(m, cols)))
-    if m.capsules is not None and scene.links is not None:
-        for ends, radius in zip(m.capsules[i], scene.links.radii, strict=True):
-            outline = stadium(project(ends, **VIEW), float(radius))
-            ax.fill(outline[:, 0], outline[:, 1], color=ROBOT, alpha=0.15, lw=0, zorder=0.5)
-    q = project(m.arm[i], **VIEW)
-    ax.plot(q[:, 0], q[:, 1], "-o", color=ROBOT, lw=3.2, ms=3.5)
-    tool = m.tools[i]
-    _axes(ax, tool[:3, 3], tool[:3, :3].T * 0.05)
-    t = project(cols.target[row], **VIEW)
-    ax.plot([t[0]], [t[1]], "o", color=TARGET, ms=6, mfc="none", mew=1.6, zorder=3)
-    if m.raw is not None and cols.clamped[row]:
-        r = project(m.raw[i], **VIEW)
+    grid_lines(ax, floor_grid(_robot_extent(m, cols)))
+    capsules = None if m.capsules is None else m.capsules[i]
+    radii = None if scene.links is None else scene.links.radii
+    raw = m.raw[i] if m.raw is not None and cols.clamped[row] else None
+    draw_arm(ax, m.arm[i], m.tools[i], cols.target[row], capsules=capsules, radii=radii, raw=raw)
+
+
+def draw_arm(
+    ax: Axes,
+    points: np.ndarray,
+    tool: np.ndarray,
+    target: np.ndarray,
+    *,
+    capsules: np.ndarray | None = None,
+    radii: np.ndarray | None = None,
+    raw: np.ndarray | None = None,
+    color: str = ROBOT,
+    target_color: str = TARGET,
+    view: dict[str, float] | None = None,
+) -> None:
+    """One posed arm, display frame (metres): its link ``capsules`` ``(n_capsules, 2, 3)`` (``radii``
+    ``(n_capsules,)``) shaded, its joint origins and tool point ``points`` ``(n_joints + 1, 3)``, the tool frame
+    ``tool`` ``(4, 4)``'s axes, the ``target`` ``(3,)`` circled and, where the reach clamp moved it, the ``raw``
+    target ``(3,)`` crossed and joined to it; seen from ``view`` (default :data:`VIEW`)."""
+    view = view or VIEW
+    if capsules is not None and radii is not None:
+        for ends, radius in zip(capsules, radii, strict=True):
+            outline = stadium(project(ends, **view), float(radius))
+            ax.fill(outline[:, 0], outline[:, 1], color=color, alpha=0.15, lw=0, zorder=0.5)
+    q = project(points, **view)
+    ax.plot(q[:, 0], q[:, 1], "-o", color=color, lw=3.2, ms=3.5)
+    _axes(ax, tool[:3, 3], tool[:3, :3].T * 0.05, view)
+    t = project(target, **view)
+    ax.plot([t[0]], [t[1]], "o", color=target_color, ms=6, mfc="none", mew=1.6, zorder=3)
+    if raw is not None:
+        r = project(raw, **view)
         ax.plot([r[0], t[0]], [r[1], t[1]], ":", color=RAW, lw=1.0, zorder=3)
         ax.plot([r[0]], [r[1]], "x", color=RAW, ms=6, mew=1.6, zorder=3)
 
 
-def _axes(ax: Axes, origin: np.ndarray, axes: np.ndarray) -> None:
-    o = project(origin, **VIEW)
+def _axes(ax: Axes, origin: np.ndarray, axes: np.ndarray, view: dict[str, float]) -> None:
+    o = project(origin, **view)
     for vec, color in zip(axes, AXES_COLORS, strict=True):
-        e = project(origin + vec, **VIEW)
+        e = project(origin + vec, **view)
         ax.plot([o[0], e[0]], [o[1], e[1]], color=color, lw=1.0)
 
 
-def _angles(ax: Axes, scene: Scene, cols: TickColumns, rows: np.ndarray) -> None:
+def angle_strip(ax: Axes, arm: Arm, cols: TickColumns, rows: np.ndarray, *, label: str = "commanded (deg)") -> None:
+    """The commanded joint angles of ``arm`` in degrees over the clip (``cols``), the moments ``rows`` marked
+    with their letters, the clamped and velocity-limited ticks flagged; its legend below it."""
     t = cols.clip_time
     colors = plt.get_cmap("tab10").colors  # type: ignore[attr-defined]
-    for j, name in enumerate(scene.arm.joint_names):
+    for j, name in enumerate(arm.joint_names):
         ax.plot(t, np.degrees(cols.q_cmd[:, j]), color=colors[j % 10], lw=1.4, label=name)
     bottom, top = ax.get_ylim()
     ax.set_ylim(bottom - 0.06 * (top - bottom), top + 0.06 * (top - bottom))  # room for the flags' ticks
     band = ax.get_xaxis_transform()  # x in data, y in axes fractions
-    for flag, color, y, label in ((cols.clamped, RAW, 0.975, "target clamped"),
-                                  (cols.velocity_limited, "k", 0.025, "velocity-limited")):  # fmt: skip
+    for flag, color, y, what in ((cols.clamped, RAW, 0.975, "target clamped"),
+                                 (cols.velocity_limited, "k", 0.025, "velocity-limited")):  # fmt: skip
         hits = np.flatnonzero(flag)
         if hits.size:
-            ax.plot(t[hits], np.full(hits.size, y), "|", color=color, ms=5, transform=band, label=label)
+            ax.plot(t[hits], np.full(hits.size, y), "|", color=color, ms=5, transform=band, label=what)
     for i, row in enumerate(rows):
         ax.axvline(t[row], color="#888888", lw=0.8, ls="--", zorder=0)
-        ax.text(t[row], 1.02, _letter(i), transform=ax.get_xaxis_transform(), ha="center", va="bottom",
+        ax.text(t[row], 1.02, letter(i), transform=ax.get_xaxis_transform(), ha="center", va="bottom",
                 fontsize=9, weight="bold")  # fmt: skip
     ax.set_xlabel("clip time (s)", fontsize=9)
-    ax.set_ylabel("commanded (deg)", fontsize=9)
+    ax.set_ylabel(label, fontsize=9)
     ax.tick_params(labelsize=8)
     span = float(t[-1] - t[0]) or 1.0
     ax.set_xlim(t[0] - 0.01 * span, t[-1] + 0.01 * span)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, ncol=min(8, scene.arm.n_joints + 2), loc="upper center", bbox_to_anchor=(0.5, -0.32),
+    ax.legend(fontsize=8, ncol=min(8, arm.n_joints + 2), loc="upper center", bbox_to_anchor=(0.5, -0.32),
               frameon=False)  # fmt: skip
 
 
-def _legend(fig: Figure, y: float, *, clamped: bool) -> None:
+def _handles(*, clamped: bool) -> list[Line2D]:
     handles = [
         Line2D([], [], color=HUMAN, lw=2, label="skeleton"),
         Line2D([], [], color=CHAIN, lw=3, marker="o", ms=3.5, label="the arm that drives the robot"),
@@ -287,7 +338,16 @@ def _legend(fig: Figure, y: float, *, clamped: bool) -> None:
         Line2D([], [], color=TARGET, marker="o", mfc="none", mew=1.6, lw=0, label="target"),
     ]
     if clamped:
-        handles.append(Line2D([], [], color=RAW, marker="x", mew=1.6, lw=0, label="target before the reach clamp"))
+        handles.append(raw_handle())
     handles.append(Line2D([], [], color=GRID, lw=1.5, label=f"floor, {GRID_STEP * 100:.0f} cm grid"))
-    fig.legend(handles=handles, loc="center", bbox_to_anchor=(0.5, y), ncol=len(handles), fontsize=8.5,
+    return handles
+
+
+def raw_handle() -> Line2D:
+    return Line2D([], [], color=RAW, marker="x", mew=1.6, lw=0, label="target before the reach clamp")
+
+
+def legend(fig: Figure, y: float, handles: list[Line2D], *, ncol: int | None = None) -> None:
+    """The sheet's legend, centred across at height ``y`` (figure fraction), in ``ncol`` columns (default one row)."""
+    fig.legend(handles=handles, loc="center", bbox_to_anchor=(0.5, y), ncol=ncol or len(handles), fontsize=8.5,
                frameon=False)  # fmt: skip

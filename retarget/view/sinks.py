@@ -36,7 +36,8 @@ from typing import IO
 import rerun as rr
 
 from retarget.errors import ConfigError
-from retarget.view.rerun_log import blueprint, log_scene
+from retarget.view.rerun_log import blueprint, log_rig_scene, log_scene, rig_blueprint
+from retarget.view.rig import RigScene
 from retarget.view.scene import Scene
 
 __all__ = ["Outputs", "WebViewer", "open_recording", "rerun_program", "web_url"]
@@ -183,29 +184,34 @@ def _check_free(port: int, option: str) -> None:
 
 @contextmanager
 def open_recording(
-    scene: Scene, outputs: Outputs, *, name: str = "retarget", web: WebViewer | None = None
+    scene: Scene | RigScene, outputs: Outputs, *, name: str = "retarget", web: WebViewer | None = None
 ) -> Iterator[rr.RecordingStream]:
-    """A recording stream with the scene's static part logged, sent to ``outputs``; flushed and closed after.
+    """A recording stream with the scene's (one arm's, or a rig's) static part logged, sent to ``outputs``;
+    flushed and closed after.
 
     ``web``: a started :class:`WebViewer` to stream to (its URL goes to stderr).
     ``spawn``: a native viewer (needs a display; the error says to use ``--web`` or ``--record`` instead).
     """
     rec = rr.RecordingStream("retarget", recording_id=uuid.uuid4())
+    layout = rig_blueprint(scene) if isinstance(scene, RigScene) else blueprint(scene)
     sinks: list[object] = []
     if outputs.record is not None:
         sinks.append(rr.FileSink(outputs.record))
     if web is not None:
         sinks.append(rr.GrpcSink(web.grpc_url))
     if sinks:
-        rec.set_sinks(*sinks, default_blueprint=blueprint(scene))  # type: ignore[arg-type]
+        rec.set_sinks(*sinks, default_blueprint=layout)  # type: ignore[arg-type]
     if outputs.spawn:
         try:
-            rr.spawn(recording=rec, default_blueprint=blueprint(scene), hide_welcome_screen=True)
+            rr.spawn(recording=rec, default_blueprint=layout, hide_welcome_screen=True)
         except Exception as exc:  # no display, no viewer binary
             raise ConfigError(f"Expected a native Rerun viewer to open ({exc}); use --web or --record", key="--view",
                               value=True) from exc  # fmt: skip
     rec.send_recording_name(name)
-    log_scene(rec, scene)
+    if isinstance(scene, RigScene):
+        log_rig_scene(rec, scene)
+    else:
+        log_scene(rec, scene)
     if web is not None:
         print(f"retarget: viewer at {web.url}", file=sys.stderr, flush=True)
     try:
