@@ -102,7 +102,7 @@ def arm_lines(summary: RigSummary) -> list[str]:
 def export_rig(args: argparse.Namespace, inputs: RigInputs, config: LoopConfig, write: Writer) -> int:
     """``retarget export --rig``: every arm's trajectory in one CSV, ``time_s`` then ``<arm>/<joint>_rad``, written
     by ``write`` (``replay.write_trajectory``) with the loop's ``config`` (``replay.loop_config``)."""
-    replay = rig_replay(inputs, config, clock=VirtualClock())
+    replay = rig_replay(inputs, config, clock=VirtualClock(), look_ahead=not args.no_look_ahead)
     q0 = replay.initial_pose()
 
     def play(on_tick: Callable[[TickRecord], None]) -> RigSummary:
