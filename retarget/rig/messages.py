@@ -41,6 +41,7 @@ from retarget.teleop.gate import (
     TargetGate,
     json_values,
     message_of,
+    message_text,
     parse_message,
 )
 from retarget.teleop.rejects import Reject, TargetRejected
@@ -73,18 +74,8 @@ def parse_rig_message(
     ...
     retarget.teleop.rejects.TargetRejected: target: Expected an arm of the rig (left, right) (got 'middle')
     """
-    size = len(data) if isinstance(data, bytes) else len(data.encode("utf-8", "surrogatepass"))
-    if size > max_bytes:
-        raise TargetRejected(Reject.OVERSIZE, f"Expected at most {max_bytes} bytes, got {size}", key=key)
-    if isinstance(data, bytes):
-        try:
-            text = data.decode("utf-8")
-        except UnicodeDecodeError:
-            raise TargetRejected(Reject.MALFORMED, "Expected UTF-8 text", key=key, value=data) from None
-    else:
-        text = data
-    text = text.strip()
-    if not text or text.startswith("#"):
+    text = message_text(data, max_bytes=max_bytes, key=key)
+    if text is None:
         return None
     if text.startswith("{"):
         return _json_message(text, names, key)

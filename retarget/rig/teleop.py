@@ -48,13 +48,12 @@ from retarget.rig.plant import RigPlant
 from retarget.rig.spec import Rig
 from retarget.teleop.follower import (
     DEFAULT_TOLERANCE,
-    SETTLE_TOLERANCE,
-    TICK,
     Follower,
     PoseSolver,
     TeleopResult,
     require_tolerance,
     rotation_angle,
+    settled,
 )
 
 if TYPE_CHECKING:
@@ -141,10 +140,7 @@ class _RigRun(TargetSource):
             return True  # a dry run (or nothing ran): the goals are the result
         if self._done_tick is None:
             self._done_tick = tick
-        off = float(np.max(np.abs(self.present - self._q)))
-        still = self.previous is not None and np.array_equal(self.present, self.previous)
-        settled = off <= 0.6 * TICK or (still and off <= SETTLE_TOLERANCE)
-        return settled or tick - self._done_tick >= self.settle_ticks
+        return settled(self.present, self.previous, self._q) or tick - self._done_tick >= self.settle_ticks
 
 
 @dataclass(frozen=True)

@@ -503,10 +503,17 @@ class _Run(TargetSource):
             return True  # a dry run (or nothing ran): the goals are the result
         if self._done_tick is None:
             self._done_tick = tick
-        off = float(np.max(np.abs(self.present - self.q_cmd)))
-        still = self.previous is not None and np.array_equal(self.present, self.previous)
-        settled = off <= 0.6 * TICK or (still and off <= SETTLE_TOLERANCE)
-        return settled or tick - self._done_tick >= self.settle_ticks
+        return settled(self.present, self.previous, self.q_cmd) or tick - self._done_tick >= self.settle_ticks
+
+
+def settled(
+    present: npt.NDArray[np.float64], previous: npt.NDArray[np.float64] | None, q_cmd: npt.NDArray[np.float64]
+) -> bool:
+    """The read-back ``present`` ``(n_joints,)`` rad has settled on the commanded ``q_cmd``: within 0.6 of a
+    position tick, or within ``SETTLE_TOLERANCE`` and unchanged since ``previous`` (a servo that stopped short)."""
+    off = float(np.max(np.abs(present - q_cmd)))
+    still = previous is not None and np.array_equal(present, previous)
+    return off <= 0.6 * TICK or (still and off <= SETTLE_TOLERANCE)
 
 
 #: The largest ``tolerance`` (m) of a follower or a teleop run: past it "reached" says nothing (``1e300`` made

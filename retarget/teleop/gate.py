@@ -88,11 +88,12 @@ _SPLIT = re.compile(r"[\s,]+")
 _JSON_KEYS = frozenset({"x", "y", "z", "rpy", "roll", "pitch", "yaw"})
 
 
-def parse_message(data: str | bytes, *, max_bytes: int = MAX_MESSAGE_BYTES, key: str = "target") -> Message | None:
-    """One line or datagram -> :class:`Message`; ``None`` for a blank line or a ``#`` comment.
+def message_text(data: str | bytes, *, max_bytes: int = MAX_MESSAGE_BYTES, key: str = "target") -> str | None:
+    """One line or datagram's text, stripped; ``None`` for a blank line or a ``#`` comment.  Raises
+    :class:`TargetRejected` ``OVERSIZE`` (over ``max_bytes``) or ``MALFORMED`` (not UTF-8).
 
-    Raises :class:`TargetRejected` (``OVERSIZE``, ``MALFORMED`` or ``NON_FINITE``).  The bounds are
-    checked later, by :class:`TargetBounds`, once the position is in the base frame.
+    >>> message_text(b"  0.3 0 0.2\\n"), message_text("# a comment")
+    ('0.3 0 0.2', None)
     """
     size = len(data) if isinstance(data, bytes) else len(data.encode("utf-8", "surrogatepass"))
     if size > max_bytes:
@@ -105,7 +106,17 @@ def parse_message(data: str | bytes, *, max_bytes: int = MAX_MESSAGE_BYTES, key:
     else:
         text = data
     text = text.strip()
-    if not text or text.startswith("#"):
+    return None if not text or text.startswith("#") else text
+
+
+def parse_message(data: str | bytes, *, max_bytes: int = MAX_MESSAGE_BYTES, key: str = "target") -> Message | None:
+    """One line or datagram -> :class:`Message`; ``None`` for a blank line or a ``#`` comment.
+
+    Raises :class:`TargetRejected` (``OVERSIZE``, ``MALFORMED`` or ``NON_FINITE``).  The bounds are
+    checked later, by :class:`TargetBounds`, once the position is in the base frame.
+    """
+    text = message_text(data, max_bytes=max_bytes, key=key)
+    if text is None:
         return None
     if text.startswith("{"):
         values = _json_values(text, key)
