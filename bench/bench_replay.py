@@ -6,9 +6,10 @@ Run: ``python bench/bench_replay.py [--clip PATH] [--repeat 5] [--bus-ticks 2000
    bus: the mapping of every frame plus the dry-run loop at 100 Hz (IK warm-started, velocity limits).
    Target: <= 0.16 s in total (>= 100x real time), IK converged on every reachable (unclamped) tick,
    per-tick compute p99 <= 1 ms.  BVH parsing is reported beside it (its own bench is bench_bvh.py).
-   Then the same with collisions on, as ``retarget export`` runs it (``CollisionModel.for_arm``, the default
-   clearance: targets pushed out of blocked zones, every IK pose verified, every tick's segment checked):
-   target >= 100x real time, zero goals within the clearance.
+   Then ``retarget export`` with collisions on (the default clearance: targets pushed out of blocked zones,
+   every IK pose verified, every tick's segment checked), both sides, the whole command run in process
+   (``retarget.cli.main``, best of ``--repeat``): target >= 100x real time, zero goals within the clearance;
+   and the export cases that must not get slower (:data:`EXPORT_CASES`).
 2. The loop on the simulated bus at 1 Mbps with the wire-time model on, 6 servos (the Koch arm:
    5 joints + gripper), Return Delay Time 0.  The wire-limited tick rate is measured on a virtual clock
    with the loop unpaced (the simulator advances the clock by exactly the wire time of each packet,
@@ -54,34 +55,77 @@ def row(label: str, value: str, target: str, ok: bool) -> None:
     print(f"   {label:<34} {value:<22} target {target:<20} {check(ok)}")
 
 
+#: ``retarget export`` cases that must not get slower (clip, arm, side), timed beside the issue's target
+EXPORT_CASES = (
+    ("motion_walk.bvh", "wx250s", "left"),
+    ("push.bvh", "koch", "right"),
+    ("motion_dance.bvh", "koch", "right"),
+)
+
+
+def export_command(clip: Path, arm: str, side: str, repeat: int) -> tuple[list[float], str]:
+    """``retarget export CLIP --arm ARM --side SIDE -o FILE`` run in process (``retarget.cli.main``: argument
+    parsing, BVH parse, mapping, collision model, IK pass, plan, loop, CSV), ``repeat`` times after a warm-up:
+    the real seconds of each run and the command's summary line (stderr)."""
+    import contextlib
+    import io
+    import tempfile
+
+    from retarget.cli import main as cli
+
+    seconds = []
+    with tempfile.TemporaryDirectory() as tmp:
+        argv = ["export", str(clip), "--arm", arm, "--side", side, "-o", str(Path(tmp) / "out.csv")]
+        for i in range(repeat + 1):
+            err = io.StringIO()
+            t0 = time.perf_counter()
+            with contextlib.redirect_stderr(err):
+                code = cli(argv)
+            if i:
+                seconds.append(time.perf_counter() - t0)
+            if code:
+                raise SystemExit(f"bench_replay: retarget export failed: {err.getvalue().strip()}")
+    return seconds, err.getvalue().strip()
+
+
 def offline_collisions(clip: Path, repeat: int) -> None:
-    """Case 1 with collisions on, as ``retarget export`` runs it."""
+    """Case 1 with collisions on: ``retarget export`` of both sides, the whole command in process, then the loop's
+    figures (least clearance written, blocked goals) from the library, as export runs it (look-ahead plan from the
+    first target's IK); then the export cases that must not get slower."""
     from retarget.collision import CollisionModel
 
     arm = retarget.load_arm("wx250s")
     motion = retarget.load_bvh(clip)
-    motion.positions()
-    totals, summaries = [], []
-    for i in range(repeat + 1):
-        t0 = time.perf_counter()
-        model = CollisionModel.for_arm(arm)
-        targets = retarget_targets(motion, arm, collision=model)
-        summary = ControlLoop(arm, targets, config=LoopConfig(collision=model), clock=VirtualClock()).run(None)
-        if i:
-            totals.append(time.perf_counter() - t0)
-            summaries.append(summary)
-    total = statistics.median(totals)
-    s = summaries[0]
-    print(f"1b. the same with collisions on (clearance {model.clearance * 1e3:g} mm, as retarget export runs it)")
-    row(f"mapping + loop, {s.ticks} ticks", f"{total * 1e3:.1f} ms", "<= 160 ms", total <= 0.16)
-    row("real-time factor", f"{motion.duration / total:.0f}x", ">= 100x", motion.duration / total >= 100)
-    ok = s.min_clearance_mm is not None and s.min_clearance_mm >= model.clearance * 1e3
-    row("least clearance written", f"{s.min_clearance_mm:.1f} mm", f">= {model.clearance * 1e3:g} mm", ok)
-    print(
-        f"   (IK {s.ik_converged_pct:.1f}% converged, {s.ik_blocked_ticks} ticks stopped short by a collision; "
-        f"{s.blocked_ticks} goals blocked; {s.pushed_targets} targets pushed out; "
-        f"compute p99 {s.compute_ms_p99:.2f} ms)"
-    )
+    model = CollisionModel.for_arm(arm)
+    print(f"1b. retarget export {clip.name} --arm wx250s, collisions on (clearance {model.clearance * 1e3:g} mm), "
+          f"the whole command in process, best of {repeat}")  # fmt: skip
+    for side in (Side.RIGHT, Side.LEFT):
+        seconds, _ = export_command(clip, "wx250s", side.value, repeat)
+        best, factor = min(seconds), motion.duration / min(seconds)
+        median = statistics.median(seconds)
+        row(f"{side.value}: whole command", f"{best * 1e3:.0f} ms = {factor:.0f}x", ">= 100x real time", factor >= 100)
+        print(f"   ({side.value}: median {median * 1e3:.0f} ms = {motion.duration / median:.0f}x)")
+        targets = retarget_targets(motion, arm, MappingConfig(side=side), collision=model)
+        loop = ControlLoop(arm, targets, config=LoopConfig(collision=model), clock=VirtualClock())
+        s = loop.run(None, q_start=loop.initial_pose())
+        least, limit = s.min_clearance_mm, model.clearance * 1e3
+        ok = least is not None and least >= limit
+        row(f"{side.value}: least clearance written", f"{least:.1f} mm", f">= {limit:g} mm", ok)
+        print(
+            f"   (IK {s.ik_converged_pct:.1f}% converged, {s.ik_blocked_ticks} ticks stopped short by a collision; "
+            f"{s.blocked_ticks} goals blocked; {s.pushed_targets} targets pushed out; "
+            f"compute p99 {s.compute_ms_p99:.2f} ms)"
+        )
+    print("   export cases that must not get slower (whole command, best of the runs):")
+    for name, arm_name, side_name in EXPORT_CASES:
+        path = clip.parent / name
+        if not path.is_file():
+            print(f"   {name}: not found, skipped")
+            continue
+        seconds, _ = export_command(path, arm_name, side_name, repeat)
+        duration = retarget.load_bvh(path).duration
+        print(f"   {name} --arm {arm_name} --side {side_name}: {min(seconds) * 1e3:.0f} ms = "
+              f"{duration / min(seconds):.0f}x real time")  # fmt: skip
 
 
 def offline(clip: Path, repeat: int) -> None:
@@ -221,9 +265,13 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--bus-ticks", type=int, default=2000)
     parser.add_argument("--skip-bus", action="store_true")
+    parser.add_argument("--export-only", action="store_true", help="only case 1b: retarget export, collisions on")
     args = parser.parse_args()
     if not args.clip.is_file():
         raise SystemExit(f"bench_replay: clip not found: {args.clip} (set RETARGET_SHARED_BVH)")
+    if args.export_only:
+        offline_collisions(args.clip, args.repeat)
+        return
     offline(args.clip, args.repeat)
     offline_collisions(args.clip, args.repeat)
     if not args.skip_bus:

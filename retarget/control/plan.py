@@ -29,6 +29,7 @@ per slot^2.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 from typing import Protocol
@@ -37,6 +38,7 @@ import numpy as np
 import numpy.typing as npt
 
 from retarget.control.profile import stop_speed
+from retarget.ik.bound import State, shared_bound
 from retarget.ik.result import IKResult
 
 __all__ = ["PathPlan", "plan_path", "solve_and_plan"]
@@ -126,19 +128,33 @@ def _plan_joint(goal: list[float], q0: float, limits: tuple[float, float, float,
 def _follow(goal: list[float], q: float, limits: tuple[float, float, float, float]) -> list[float]:
     """The poses of one joint following ``goal`` (rad per slot) from ``q`` at rest with the trapezoidal profile
     (:func:`~retarget.control.profile.profile_step`, inlined as in the StepLimiter; the goal's own step fed
-    forward); the loop's limiter run over a whole path at once."""
+    forward); the loop's limiter run over a whole path at once.  :func:`~retarget.control.profile.stop_speed` is
+    inlined too where it runs every slot (the same expressions, so the same floats; near a joint limit it is
+    called)."""
     vmax, a, lo, hi = limits
     far = vmax * vmax / (2.0 * a) + vmax + a
+    sqrt, floor = math.sqrt, math.floor
     out: list[float] = []
     append = out.append
     v = 0.0
-    last = None
+    last = goal[0] if goal else 0.0  # the first goal's own step is 0 (g - g)
     for g in goal:
-        u = 0.0 if last is None else g - last
+        u = g - last
         last = g
-        u = vmax if u > vmax else -vmax if u < -vmax else u
+        if u > vmax:
+            u = vmax
+        elif u < -vmax:
+            u = -vmax
         d = g - q - u
-        w = u if d == 0.0 else u + stop_speed(d, a) if d > 0.0 else u - stop_speed(-d, a)
+        if d > 0.0:  # u + stop_speed(d, a)
+            n = floor((sqrt(1.0 + 8.0 * d / a) - 1.0) * 0.5)
+            w = u + (d + a * n * (n + 1) * 0.5) / (n + 1)
+        elif d < 0.0:  # u - stop_speed(-d, a)
+            d = -d
+            n = floor((sqrt(1.0 + 8.0 * d / a) - 1.0) * 0.5)
+            w = u - (d + a * n * (n + 1) * 0.5) / (n + 1)
+        else:
+            w = u
         low, high = v - a, v + a
         if low < -vmax:
             low = -vmax
@@ -150,8 +166,10 @@ def _follow(goal: list[float], q: float, limits: tuple[float, float, float, floa
             high = min(high, stop_speed(hi - q, a))
         if low > high:
             w = v - a if v > 0.0 else v + a
-        else:
-            w = low if w < low else high if w > high else w
+        elif w < low:
+            w = low
+        elif w > high:
+            w = high
         y = q + w
         q = lo if y < lo else hi if y > hi else y
         v = w
@@ -194,12 +212,26 @@ def solve_and_plan(
 ) -> PathPlan:
     """IK of every target ``positions`` ``(n, 3)`` m (``rotations`` ``(n, 3, 3)`` or None), each warm-started from
     the last solution (the first from ``q_start`` ``(n_joints,)`` rad), then :func:`plan_path` of the solutions from
-    ``q_start`` at rest (limits as there, per slot)."""
+    ``q_start`` at rest (limits as there, per slot).  With a collision-aware solver (its ``collision`` model) each
+    planned move, from ``q_start`` then tick to tick, is bounded from the notes its IK pass made
+    (:meth:`~retarget.ik.bound.ClearanceBound.prove`): the loop's goal check takes a move's bound when it keeps the
+    clearance and checks the move itself otherwise."""
     t0 = time.perf_counter()
-    results = solve_path(solver, positions, rotations, q_start)
-    qs = np.array([r.q for r in results], dtype=np.float64).reshape(len(results), len(q_start))
-    planned = plan_path(qs, q_start, lower=lower, upper=upper, max_step=max_step, max_accel=max_accel,
-                        iterations=iterations)  # fmt: skip
+    model = getattr(solver, "collision", None)  # (a CCDSolver's collision model; None: none)
+    bound = None if model is None else shared_bound(model)
+    notes = None if bound is None else bound.record()
+    try:
+        results, index = _solve(solver, positions, rotations, q_start, notes)
+        qs = np.array([r.q for r in results], dtype=np.float64).reshape(len(results), len(q_start))
+        planned = plan_path(qs, q_start, lower=lower, upper=upper, max_step=max_step, max_accel=max_accel,
+                            iterations=iterations)  # fmt: skip
+    except BaseException:
+        if bound is not None:
+            bound.record(False)
+        raise
+    if bound is not None and notes is not None:  # the plan's moves bounded from the notes the IK pass made
+        starts = np.vstack([np.asarray(q_start, dtype=np.float64)[None], planned[:-1]])
+        bound.prove(starts, planned, notes, index)
     seconds = time.perf_counter() - t0
     return PathPlan(planned, results, np.asarray(positions), tuple(clamped.tolist()), seconds)
 
@@ -207,10 +239,21 @@ def solve_and_plan(
 def solve_path(solver: _Solver, positions: Array, rotations: Array | None, q_start: Array) -> tuple[IKResult, ...]:
     """IK of every target ``positions`` ``(n, 3)`` m (``rotations`` ``(n, 3, 3)`` or None), each warm-started from
     the last solution, the first from ``q_start`` ``(n_joints,)`` rad: the unplanned joint path, one result a tick."""
+    return _solve(solver, positions, rotations, q_start, None)[0]
+
+
+def _solve(
+    solver: _Solver, positions: Array, rotations: Array | None, q_start: Array, notes: list[State] | None
+) -> tuple[tuple[IKResult, ...], list[int]]:
+    """:func:`solve_path`, and per tick the index in ``notes`` (a list the collision bound appends its notes to,
+    :meth:`~retarget.ik.bound.ClearanceBound.record`; None: no indices) of the last note after its solve."""
     solve, q = solver.solve, np.asarray(q_start, dtype=np.float64)
     results = []
+    index: list[int] = []
     for i in range(len(positions)):
         result = solve(positions[i], q, None if rotations is None else rotations[i])
         results.append(result)
+        if notes is not None:
+            index.append(len(notes) - 1)
         q = result.q
-    return tuple(results)
+    return tuple(results), index

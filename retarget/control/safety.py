@@ -95,7 +95,10 @@ class GoalCheck:
     first: of ``q_start``).  Most ticks need no query or one of a single pose: the segment's clearance is bounded
     from its ends' (:class:`~retarget.ik.bound.ClearanceBound`; after a query, a table contact by its ends' height
     slopes too: ``ClearanceBound.segment_low``); a goal whose own query is within the clearance is refused at
-    once, as sampling would; only near a contact is the segment sampled (``CollisionModel.segment_clear``)."""
+    once, as sampling would; only near a contact is the segment sampled (``CollisionModel.segment_clear``).  A move
+    of a path planned ahead (``retarget.control.plan.solve_and_plan``) whose segment was bounded then
+    (``ClearanceBound.proven``: the same bound, from the notes of the plan's IK pass) needs no more work when that
+    bound keeps the clearance; any other move, or one whose bound falls short, is checked as above."""
 
     __slots__ = ("model", "clearance", "bound", "_segment_clear", "_limit", "_reach", "_at_cmd", "_cmd_state", "_memo")
 
@@ -121,6 +124,14 @@ class GoalCheck:
         clearance (or a lower bound of it, near the last segment checked: :class:`~retarget.ik.collide.
         ClearanceBound`) when it does (a blocked goal is not written: the clearance stays that of the pose held)."""
         bound, limit = self.bound, self._limit
+        proven = bound.proven
+        if proven is not None:  # a planned move, bounded ahead (ClearanceBound.prove)
+            low = proven.find(q_from, q_to)
+            if low is not None and low >= limit:
+                self.clearance = low
+                self._at_cmd, self._cmd_state = None, None
+                self._memo = (None, [], -math.inf)
+                return True
         # the fast path: both ends bounded from the last note alone (a bound from one reference is concave along a
         # straight segment, so its least over the segment is at an end)
         state, (memo_state, memo_q, memo_low) = bound.state, self._memo

@@ -1,7 +1,9 @@
 """A cheap lower bound of the clearance near a checked pose: most collision checks of a tick need no query.
 
 See :class:`ClearanceBound`.  The IK's :class:`~retarget.ik.collide.CollisionGuard` and the control loop's goal
-check share one per model (:func:`shared_bound`).
+check share one per model (:func:`shared_bound`).  It keeps its last notes (:meth:`ClearanceBound.recall`: a pose
+near an earlier one needs no query), and bounds the moves of a path planned ahead from the notes its IK pass made,
+all at once (:meth:`ClearanceBound.prove`, :class:`ProvenPath`: the loop's goal check takes those bounds).
 
 Arrays: ``q`` ``(n_joints,)`` float64 radians; pair distances ``(n_pairs,)`` metres, as the model's ``pair_names``;
 row distances ``(n_rows,)`` metres, the bound's rows (:class:`~retarget.collision.pieces.Pieces`: the pairs, with
@@ -24,7 +26,7 @@ if TYPE_CHECKING:
     from retarget.collision import CollisionModel
     from retarget.collision.pieces import Pieces
 
-__all__ = ["HORIZON", "ClearanceBound", "TableSlopes", "shared_bound"]
+__all__ = ["HORIZON", "ClearanceBound", "ProvenPath", "TableSlopes", "shared_bound"]
 
 #: metres beyond the clearance within which a query measures a pair exactly (farther ones keep a cheap lower bound
 #: of at least this: ``CollisionModel.pair_bounds``)
@@ -33,6 +35,8 @@ HORIZON = 0.01
 State = tuple[np.ndarray, np.ndarray]  #: a note: its pose ``(n_joints,)`` rad and row distances ``(n_rows,)`` m
 #: a note's plain-float screen: its pose and its groups of rows (least distance, greatest levers)
 Screen = tuple[list[float], list[tuple[float, ...]]]
+_BLOCK = 256  #: segments per product in ClearanceBound.prove
+KEPT = 64  #: notes kept for :meth:`ClearanceBound.recall`
 _NEAR = 6  #: rows the screen bounds one by one (the rest in groups: see ClearanceBound._screen_for)
 _BANDS = (0.0, 0.01, 0.03, 0.1)  #: where the screen's bands of rows start, metres beyond the least of them
 
@@ -65,7 +69,8 @@ class ClearanceBound:
     """
 
     __slots__ = ("_pieces", "_levers", "_state", "_previous", "_last", "_move", "_fall", "_clearance", "_scale",
-                 "_inv_sigma", "_rows", "_screen", "_screen_previous", "_slopes")  # fmt: skip
+                 "_inv_sigma", "_rows", "_screen", "_screen_previous", "_slopes", "_log", "proven", "_kept", "_kept_q",
+                 "_kept_d", "_kept_move", "_kept_fall", "_kept_at")  # fmt: skip
 
     def __init__(self, model: CollisionModel):
         from retarget.collision.pieces import Pieces  # (the collision package never imports this one)
@@ -89,6 +94,18 @@ class ClearanceBound:
         self._screen: Screen | None = None
         self._screen_previous: Screen | None = None
         self._slopes = TableSlopes(model, self._pieces, self._levers)  #: the table rows' second bound
+        self._log: list[State] | None = None  #: the notes since :meth:`record` (None: not recording)
+        # the last KEPT notes, for :meth:`recall`: each note's state and screen, and its pose and rows stacked (a
+        # ring; rows of -inf until filled, so an empty slot never bounds anything)
+        n, n_rows = model.arm.n_joints, len(self._levers)
+        self._kept: list[tuple[State, Screen | None] | None] = [None] * KEPT
+        self._kept_q = np.zeros((KEPT, n))
+        self._kept_d = np.full((KEPT, n_rows), -math.inf)
+        self._kept_move = np.empty((KEPT, n))
+        self._kept_fall = np.empty((KEPT, n_rows))
+        self._kept_at = 0  #: the slot the next note goes to
+        #: the segments of the last path proven clear (:meth:`prove`), for the loop's goal check; None: none
+        self.proven: ProvenPath | None = None
 
     @property
     def previous_state(self) -> State | None:
@@ -106,6 +123,88 @@ class ClearanceBound:
         ref = np.array(q, dtype=np.float64)
         self._previous, self._state = self._state, (ref, self._pieces.rows(ref, distances))
         self._screen_previous, self._screen = self._screen, self._screen_for(self._state)
+        if self._log is not None:
+            self._log.append(self._state)
+        at = self._kept_at
+        self._kept[at] = (self._state, self._screen)
+        self._kept_q[at] = ref
+        self._kept_d[at] = self._state[1]
+        self._kept_at = (at + 1) % KEPT
+
+    def recall(self, q: Sequence[float] | np.ndarray) -> float:
+        """A lower bound of the min clearance (metres) of pose ``q`` (rad) from the best of the last :data:`KEPT`
+        notes (each bounds it by itself, as the last one does in :meth:`quick`; a motion that comes back near
+        where it was, or an IK pass over poses the loop has noted, needs no query).  When that keeps the clearance
+        the note it came from becomes the last (the one :meth:`quick` bounds from; the last one the one before).
+        A few numpy calls on preallocated buffers; ``-inf`` before the first note, ``inf`` without pairs."""
+        fall = self._kept_fall
+        if not fall.shape[1]:
+            return math.inf
+        move = self._kept_move
+        np.subtract(q, self._kept_q, out=move)
+        np.abs(move, out=move)
+        np.matmul(move, self._levers.T, out=fall)
+        np.subtract(self._kept_d, fall, out=fall)
+        lows = fall.min(axis=1)
+        k = int(lows.argmax())
+        low = float(lows[k])
+        kept = self._kept[k]
+        if kept is None:
+            return -math.inf
+        if low >= self._clearance and kept[0] is not self._state:
+            self._previous, self._state = self._state, kept[0]
+            self._screen_previous, self._screen = self._screen, kept[1]
+            if self._log is not None:
+                self._log.append(kept[0])
+        return low
+
+    def record(self, on: bool = True) -> list[State]:
+        """Start keeping every note (the last one first, when there is one; a note :meth:`recall` makes the last again
+        too): the list they are appended to, until :meth:`prove` or ``record(False)`` (which stops it and returns
+        an empty list)."""
+        self._log = ([] if self._state is None else [self._state]) if on else None
+        return [] if self._log is None else self._log
+
+    def prove(
+        self, starts: np.ndarray, ends: np.ndarray, notes: Sequence[State], index: Sequence[int] | np.ndarray
+    ) -> ProvenPath:
+        """Lower bounds of the min clearance over each straight joint-space segment ``starts[i] -> ends[i]``
+        ``(n, n_joints)`` rad, from the notes ``notes`` (:meth:`record`'s): each segment from its note ``index[i]``
+        and the notes either side of it (the best of the three; each a lower bound by itself: a bound from one
+        note is concave along a straight segment, so its least is at an end).  Kept as :attr:`proven` for the
+        loop's goal check, which takes a segment's bound when its move is that segment (:class:`ProvenPath`);
+        stops recording."""
+        self._log = None
+        starts = np.asarray(starts, dtype=np.float64).reshape(-1, len(self._scale))
+        ends = np.asarray(ends, dtype=np.float64).reshape(starts.shape)
+        low = np.full(len(starts), -math.inf)
+        if notes and len(starts):
+            refs = np.array([s[0] for s in notes])
+            rows = np.array([s[1] for s in notes])
+            index = np.asarray(index, dtype=np.intp)
+            todo = np.arange(len(starts))
+            for shift in (0, 1, -1):  # the neighbours only for the segments their own note leaves short
+                k = np.clip(index[todo] + shift, 0, len(notes) - 1)
+                low[todo] = np.maximum(low[todo], self._segments_low(starts[todo], ends[todo], refs[k], rows[k]))
+                todo = todo[low[todo] < self._clearance]
+                if not todo.size:
+                    break
+        self.proven = ProvenPath(starts, ends, low, self._scale)
+        return self.proven
+
+    def _segments_low(self, starts: np.ndarray, ends: np.ndarray, refs: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """Per segment ``starts[i] -> ends[i]`` ``(m, n_joints)`` rad, the lower bound from the note of pose
+        ``refs[i]`` and row distances ``rows[i]`` ``(m, n_rows)`` metres: each row's distance less its greatest fall
+        at either end (``(m,)`` metres).  In blocks of :data:`_BLOCK` segments (a small product stays on one thread:
+        waking a BLAS pool costs more than the product)."""
+        out = np.empty(len(starts))
+        levers_t = self._levers.T
+        for i in range(0, len(starts), _BLOCK):
+            block = slice(i, i + _BLOCK)
+            ref = refs[block]
+            fall = np.maximum(np.abs(starts[block] - ref) @ levers_t, np.abs(ends[block] - ref) @ levers_t)
+            out[block] = (rows[block] - fall).min(axis=1, initial=math.inf)
+        return out
 
     def _screen_for(self, state: State) -> Screen | None:
         """The plain-float screen of a note: the :data:`_NEAR` rows that the least motion brings to the clearance
@@ -248,6 +347,66 @@ class ClearanceBound:
         fall = self._levers @ np.abs(np.asarray(q1, dtype=np.float64) - np.asarray(q0, dtype=np.float64))
         low = np.minimum(np.minimum(at0, at1), 0.5 * (at0 + at1 - fall))
         return float(low.min()) if low.size else math.inf
+
+
+class ProvenPath:
+    """Segments of a joint path, each with a lower bound of its min clearance (:meth:`ClearanceBound.prove`): the
+    moves a planned clip makes, tick by tick, so that its goal check takes each tick's bound instead of working it
+    out again.
+
+    :meth:`find` gives a segment's bound for a move ``q_from -> q_to`` that is that segment to within ``EPS`` rad
+    in all at each end (the loop's limiter, fed the plan, reproduces it to rounding), less ``EPS`` times the
+    sum of the greatest levers: every pose of the move is within ``EPS`` per joint of the segment's pose at the same
+    fraction, and no row's distance falls by more than its levers times that.  It tries only the segment after
+    the last one found (the loop plays the path in order) and the first (the path played again), so a miss costs
+    two comparisons.
+
+    >>> import retarget
+    >>> from retarget.collision import CollisionModel
+    >>> model = CollisionModel.for_arm(retarget.load_arm("wx250s"))
+    >>> bound, home = ClearanceBound(model), model.arm.home
+    >>> notes = bound.record()
+    >>> bound.note(home, model.distances(home))
+    >>> path = bound.prove(home[None], (home + 0.01)[None], notes, [0])
+    >>> low = path.find(home.tolist(), (home + 0.01).tolist())
+    >>> model.clearance <= low <= model.min_clearance(home + 0.01)
+    True
+    >>> path.find(home.tolist(), (home + 0.02).tolist()) is None  # not that segment
+    True
+    """
+
+    EPS = 1e-9  #: radians per joint: how near a move's ends must be to the segment's
+
+    __slots__ = ("_starts", "_ends", "_low", "_next")
+
+    def __init__(self, starts: np.ndarray, ends: np.ndarray, low: np.ndarray, scale: Sequence[float]):
+        margin = self.EPS * float(sum(scale))
+        self._starts: list[list[float]] = starts.tolist()
+        self._ends: list[list[float]] = ends.tolist()
+        self._low: list[float] = (low - margin).tolist()
+        self._next = 0  #: the segment tried next
+
+    def __len__(self) -> int:
+        return len(self._low)
+
+    def find(self, q_from: Sequence[float], q_to: Sequence[float]) -> float | None:
+        """A lower bound of the min clearance (metres) of the move ``q_from -> q_to`` (rad) when it is the next
+        segment (see the class docstring), else None."""
+        if isinstance(q_from, np.ndarray):
+            q_from = q_from.tolist()
+        if isinstance(q_to, np.ndarray):
+            q_to = q_to.tolist()
+        for i in (self._next, 0):  # the next segment, or the first again (the path played once more)
+            if i < len(self._low) and _near(q_to, self._ends[i]) and _near(q_from, self._starts[i]):
+                self._next = i + 1
+                return self._low[i]
+        return None
+
+
+def _near(a: Sequence[float], b: list[float]) -> bool:
+    """Whether ``a`` is ``b``, or within :attr:`ProvenPath.EPS` of it in all (so per element; False for a NaN or a
+    length mismatch: a NaN fails the sum's comparison)."""
+    return a == b or len(a) == len(b) and sum(map(abs, map(sub, a, b))) <= ProvenPath.EPS
 
 
 class TableSlopes:

@@ -106,13 +106,13 @@ class CollisionGuard:
         """Whether pose ``q`` (radians) keeps the clearance, and its min clearance (metres; a lower bound when the
         pose is near the last one queried: no query then)."""
         bound = self.bound
-        m = bound.quick(q)
-        if m >= self.clearance:
-            return True, m
-        m = bound.lower_bound(q)
+        m = bound.quick(q)  # (the same as lower_bound)
         if m >= self.clearance:
             return True, m
         m = bound.quick_previous(q)  # (the motion may have swung back near the note before)
+        if m >= self.clearance:
+            return True, m
+        m = bound.recall(q)  # (or near an earlier one: the loop's, or where the clip was before)
         if m >= self.clearance:
             return True, m
         d = self.model.pair_bounds(np.array(q), self._reach)  # exact near the clearance: its min is, when below

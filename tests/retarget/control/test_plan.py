@@ -173,3 +173,37 @@ def test_a_looping_run_plays_causally() -> None:
     assert loop.plan() is None
     records, _ = _run(loop)
     assert len(records) == 300 and sum(r.ik_sweeps for r in records) > 0
+
+
+def test_a_plan_with_collisions_proves_its_moves_and_no_proof_claims_too_much() -> None:
+    """solve_and_plan with a collision-aware solver bounds each planned move from the IK pass's notes (each
+    segment from the last command, the first from q_start): every bound is at most the clearance of 21 samples of
+    its move, most keep the clearance (the loop's goal check then takes them without a query), and the goal check
+    walking the plan takes every move."""
+    from retarget.collision import CollisionModel
+    from retarget.control.plan import solve_and_plan
+    from retarget.control.safety import GoalCheck
+    from retarget.ik import CCDSolver
+    from retarget.ik.bound import shared_bound
+
+    arm = retarget.load_arm("wx250s")
+    model = CollisionModel.for_arm(arm)
+    solver = CCDSolver(arm, collision=model)
+    t = np.linspace(0.0, 2.0 * np.pi, 120)
+    positions = np.stack([0.3 + 0.08 * np.cos(t), 0.15 * np.sin(2 * t), 0.25 + 0.08 * np.sin(t)], axis=1)
+    q_start = solver.solve(positions[0], arm.home).q
+    limits = {"lower": arm.lower, "upper": arm.upper}
+    limits |= {"max_step": arm.max_velocity / 100, "max_accel": arm.max_acceleration / 1e4}  # at 100 Hz
+    plan = solve_and_plan(solver, positions, None, np.zeros(len(t), dtype=bool), q_start, **limits)
+    proven = shared_bound(model).proven
+    assert proven is not None and len(proven) == len(t)
+    lows = np.array(proven._low)
+    starts = np.vstack([q_start[None], plan.q[:-1]])
+    s = np.linspace(0.0, 1.0, 21)[:, None]
+    for i in range(0, len(t), 3):
+        true = float(model.distances(starts[i] + s * (plan.q[i] - starts[i])).min())
+        assert lows[i] <= max(true, 0.0) + 1e-12
+    assert np.mean(lows >= model.clearance) > 0.9
+    check = GoalCheck(model, q_start)
+    assert all(check.allows(a.tolist(), b.tolist()) for a, b in zip(starts, plan.q, strict=True))
+    assert proven._next == len(t)  # every move was found proven: walked to its end

@@ -54,3 +54,36 @@ def test_goal_check_answers_agree_with_sampled_segments_along_a_seeded_walk(wx):
             q = goal
         answers.append(ok)
     assert 10 < sum(answers) < 100  # both answers were exercised
+
+
+def test_a_proven_move_is_taken_without_a_query_and_any_other_move_is_checked(wx, monkeypatch):
+    """A planned path proven ahead (ClearanceBound.prove): the check takes each proven move's bound (no query, no
+    sampling); a move that is not the next proven segment, or one whose bound falls short, is checked as ever."""
+    from retarget.ik.bound import shared_bound
+
+    model = CollisionModel.for_arm(wx)
+    bound = shared_bound(model)
+    notes = bound.record()
+    bound.note(wx.home, model.distances(wx.home))
+    path = wx.home + np.linspace(0.0, 0.04, 5)[:, None] * [1.0, 0.5, -0.5, 0.0, 0.3, 0.0]
+    goal = wx.home.copy()
+    goal[1], goal[2] = 1.6, 0.2  # the gripper into the table
+    starts = np.vstack([path[:-1], path[-1:]])
+    ends = np.vstack([path[1:], goal[None]])  # the last "segment" runs into the table: its bound falls short
+    proven = bound.prove(starts, ends, notes, np.zeros(len(starts), dtype=np.intp))
+    check = GoalCheck(model, path[0])
+
+    def no_query(*_):
+        raise AssertionError("queried")
+
+    monkeypatch.setattr(model, "pair_bounds", no_query)
+    monkeypatch.setattr(check, "_segment_clear", no_query)
+    for q0, q1 in zip(path[:2], path[1:3], strict=True):
+        assert check.allows(q0.tolist(), q1.tolist())
+        assert model.clearance <= check.clearance <= brute_force_min_clearances(wx, q1[None])[0]
+    monkeypatch.undo()
+    assert not check.allows(path[2].tolist(), goal.tolist())  # not the next proven move: checked, refused
+    assert check.allows(path[2].tolist(), path[3].tolist())  # the next one still is
+    assert check.allows(path[3].tolist(), path[4].tolist())
+    assert proven._low[-1] < model.clearance  # the move into the table: proven short of the clearance, so ...
+    assert not check.allows(path[4].tolist(), goal.tolist())  # ... checked as ever, and refused

@@ -233,3 +233,99 @@ def test_the_segment_low_bound_never_exceeds_a_sampled_segment(name, zones):
             sharper += low > linear + 1e-3
     if not zones and name == "wx250s":
         assert sharper >= 5
+
+
+def _sampled(model: CollisionModel, q0: np.ndarray, q1: np.ndarray, n: int = 41) -> float:
+    """The least clearance of ``n`` samples of the segment ``q0 -> q1``, at least 0 (a penetrating pose: no claim)."""
+    s = np.linspace(0.0, 1.0, n)[:, None]
+    return max(float(model.distances(q0 + s * (q1 - q0)).min()), 0.0)
+
+
+@pytest.mark.parametrize(("name", "zones"), [("wx250s", False), ("wx250s", True), ("koch", False), ("omx", True)],
+                         ids=["wx250s-table", "wx250s-keep-outs", "koch-table", "omx-keep-outs"])  # fmt: skip
+def test_a_proven_segment_never_claims_more_than_a_sampled_segment(name, zones):
+    """Seeded: notes recorded at random poses, then segments near them, each given a note index that is its own
+    note's or one off it (prove tries the neighbours too): every segment's proven bound is at most the clearance
+    of 41 samples of it, and the path's find returns it (less its margin) for exactly that move.  Both ends count:
+    a bound from the end pose alone, or from the start alone, claims too much for some of these segments."""
+    model = _model(name, zones)
+    arm = model.arm
+    bound = ClearanceBound(model)
+    rng = np.random.default_rng(41)
+    notes = bound.record()
+    refs = []
+    for i in range(12):
+        ref = rng.uniform(arm.lower, arm.upper) * rng.choice([0.4, 1.0])
+        bound.note(ref, model.pair_bounds(ref, model.clearance + 0.01) if i % 2 else model.distances(ref))
+        refs.append(ref)
+    starts, ends, index = [], [], []
+    for k, ref in enumerate(refs):
+        for scale in (0.01, 0.05, 0.2):
+            near = ref + rng.normal(0.0, 0.2 * scale, arm.n_joints)
+            far = near + rng.normal(0.0, scale, arm.n_joints)
+            for q0, q1 in ((near, far), (far, near)):  # the note near the start, then near the end
+                starts.append(q0)
+                ends.append(q1)
+                index.append(int(np.clip(k + rng.integers(-1, 2), 0, len(notes) - 1)))
+    path = bound.prove(np.array(starts), np.array(ends), notes, np.array(index))
+    assert bound.proven is path and len(path) == len(starts)
+    proven = 0
+    for q0, q1 in zip(starts, ends, strict=True):
+        low = path.find(q0.tolist(), q1.tolist())
+        assert low is not None
+        assert low <= _sampled(model, q0, q1) + 1e-12
+        proven += low >= model.clearance
+    assert proven >= 6  # the bound claims something
+
+
+def test_a_proven_path_answers_only_its_next_segment_and_only_within_eps():
+    model = _model("wx250s", False)
+    bound = ClearanceBound(model)
+    home = model.arm.home
+    notes = bound.record()
+    bound.note(home, model.distances(home))
+    steps = home + np.linspace(0.0, 0.05, 4)[:, None]  # 3 moves of 0.0167 rad per joint
+    path = bound.prove(steps[:-1], steps[1:], notes, np.zeros(3, dtype=np.intp))
+    a, b, c, d = (s.tolist() for s in steps)
+    first = path.find(a, b)
+    assert first is not None and first < model.min_clearance(home)
+    assert path.find(c, d) is None  # neither the next segment (b -> c) nor the first
+    off = [x + 1e-6 for x in c]
+    assert path.find(b, off) is None  # beyond EPS: no answer, and the cursor stays
+    assert path.find(b, [math.nan, *c[1:]]) is None
+    assert path.find(b, c[:-1]) is None
+    assert path.find(a, c) is None  # the right end, from elsewhere
+    near = [x + 0.1 * path.EPS / len(c) for x in c]
+    assert path.find(b, near) is not None  # within EPS: the segment's bound, less the margin
+    assert path.find(np.array(c), np.array(d)) is not None  # (arrays as lists)
+    assert path.find(c, d) is None  # past the end
+    assert path.find(a, b) == first  # the path again, from its start
+    assert not bound.record(False) and bound.record() == [bound.state]
+
+
+def test_recall_bounds_from_the_best_kept_note_and_makes_it_the_last():
+    """Seeded: more notes than are kept (the ring wraps); a pose near an early note that is still kept is bounded
+    from it, never above its true clearance, and that note becomes the one quick bounds from; a pose near a note
+    that fell out of the ring is not bounded from it."""
+    from retarget.ik.bound import KEPT
+
+    model = _model("wx250s", True)
+    arm = model.arm
+    bound = ClearanceBound(model)
+    rng = np.random.default_rng(43)
+    refs = [rng.uniform(arm.lower, arm.upper) * 0.5 for _ in range(KEPT + 8)]
+    for ref in refs:
+        bound.note(ref, model.distances(ref))
+    recalled = 0
+    for k, ref in enumerate(refs):
+        q = ref + rng.normal(0.0, 0.002, arm.n_joints)
+        true = max(model.min_clearance(q), 0.0)
+        low = bound.recall(q)
+        assert low <= true + 1e-12
+        assert bound.quick(q) <= true + 1e-12
+        if low >= model.clearance:
+            recalled += 1
+            assert np.array_equal(bound.state[0], refs[k]) or k < 8  # from its own note (while it is kept)
+        if k < 8:  # fell out of the ring: bounded from another note, less than from its own
+            assert low < model.min_clearance(ref) - 1e-6
+    assert recalled >= KEPT // 2
