@@ -56,7 +56,10 @@ def test_connect_configures_every_servo_then_enables_torque(make_bus, transport_
     assert gripper.get("Torque Enable") == 1
     # enabling torque did not move anything: every joint still reads its starting (rest) pose
     np.testing.assert_allclose(bus.read_positions(), arm.rest, atol=units.RAD_PER_PULSE)
-    assert bus.status().retries == 0  # a clean bus needs no retry: no stale reply was left behind
+    status = bus.status()
+    assert (status.stale_reads, status.errors) == (0, 0)  # no stale reply was left behind
+    if transport_url.startswith("sim://"):  # in process, replies are immediate: a clean bus needs no retry
+        assert status.retries == 0  # (a loaded machine may delay a pty's or a socket's reply past the timeout)
     bus.close()  # before the pty/TCP server goes away
 
 
