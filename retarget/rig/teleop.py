@@ -38,7 +38,7 @@ from retarget.control.loop import LoopConfig, TickRecord, run_ticks
 from retarget.control.source import HOLD, JointGoal, TargetSource, TickGoal
 from retarget.control.stats import TickStats
 from retarget.control.summary import RunSummary
-from retarget.errors import BusError, require_positive
+from retarget.errors import BusError
 from retarget.ik.result import IKResult
 from retarget.mapping.filter import OneEuro
 from retarget.rig.check import RigGoalCheck
@@ -50,10 +50,10 @@ from retarget.teleop.follower import (
     DEFAULT_TOLERANCE,
     Follower,
     PoseSolver,
+    Settle,
     TeleopResult,
     require_tolerance,
     rotation_angle,
-    settled,
 )
 
 if TYPE_CHECKING:
@@ -66,7 +66,7 @@ Array = npt.NDArray[np.float64]
 
 class _RigRun(TargetSource):
     """The followers seen by the loop: each arm's setpoint through its IK, joined into one JointGoal; ends when
-    every follower is finished and the servos settled (at most ``settle_ticks`` later)."""
+    every follower is finished and the servos settled (``settle``)."""
 
     observes = True
 
@@ -76,17 +76,13 @@ class _RigRun(TargetSource):
         followers: Mapping[str, Follower],
         solvers: Mapping[str, PoseSolver],
         *,
-        settle_ticks: int,
+        settle: Settle,
         lockstep: RigInput | None,
         idle_wait: float,
     ):
         self.plant, self.followers, self.solvers = plant, dict(followers), dict(solvers)
-        self.settle_ticks, self.lockstep, self.idle_wait = settle_ticks, lockstep, idle_wait
+        self.settle, self.lockstep, self.idle_wait = settle, lockstep, idle_wait
         self.q_cmd: dict[str, Array] = {}
-        self.present: Array | None = None
-        self.previous: Array | None = None
-        self._q: Array | None = None  # the plant's commanded pose after the last tick
-        self._done_tick: int | None = None
 
     def start(self, q_start: Array) -> int:
         self.q_cmd = {name: np.array(q) for name, q in self.plant.split(q_start).items()}
@@ -129,18 +125,10 @@ class _RigRun(TargetSource):
         present = None if q_present is None else self.plant.split(q_present)
         for name, follower in self.followers.items():
             follower.observe(tick, self.q_cmd[name], None if present is None else present[name])
-        self.previous, self.present = self.present, q_present
-        self._q = q_cmd
+        self.settle.observe(q_cmd, q_present)
 
     def finished(self, tick: int) -> bool:
-        if not all(f.finished(tick) for f in self.followers.values()):
-            self._done_tick = None
-            return False
-        if self.present is None or self._q is None:
-            return True  # a dry run (or nothing ran): the goals are the result
-        if self._done_tick is None:
-            self._done_tick = tick
-        return settled(self.present, self.previous, self._q) or tick - self._done_tick >= self.settle_ticks
+        return self.settle.finished(tick, all(f.finished(tick) for f in self.followers.values()))
 
 
 @dataclass(frozen=True)
@@ -265,9 +253,8 @@ def run_rig_teleop(
         a.name: PoseSolver(a.arm, replace(config, collision=None if models is None else models[a.name]))
         for a in rig.arms
     }
-    settle_ticks = max(1, int(round(require_positive(settle_time, "settle_time") * config.rate)))
-    run = _RigRun(plant, followers, solvers, settle_ticks=settle_ticks, lockstep=rig_input if lockstep else None,
-                  idle_wait=idle_wait)  # fmt: skip
+    run = _RigRun(plant, followers, solvers, settle=Settle(settle_time, config.rate),
+                  lockstep=rig_input if lockstep else None, idle_wait=idle_wait)  # fmt: skip
     check = None
     if models is not None:
         own = dict(models)

@@ -472,18 +472,49 @@ class PoseSolver:
         return self.pose.solve(target, q0, rotation)
 
 
+class Settle:
+    """When a teleop run may end, after its source finished: once the servos' read-back settled on the last command
+    (:meth:`settled`), or ``settle_time`` s (at ``rate`` ticks/s, at least one tick) after the source finished.
+    :meth:`observe` every tick's command ``q_cmd`` and read-back ``q_present`` ``(n_joints,)`` rad; a dry run (no
+    read-back) ends as soon as the source does."""
+
+    def __init__(self, settle_time: float, rate: float):
+        self.ticks = max(1, int(round(require_positive(settle_time, "settle_time") * rate)))
+        self.present: npt.NDArray[np.float64] | None = None
+        self.previous: npt.NDArray[np.float64] | None = None
+        self.q_cmd: npt.NDArray[np.float64] | None = None
+        self._done_tick: int | None = None
+
+    def observe(self, q_cmd: npt.NDArray[np.float64], q_present: npt.NDArray[np.float64] | None) -> None:
+        self.q_cmd, self.previous, self.present = q_cmd, self.present, q_present
+
+    def finished(self, tick: int, source_finished: bool) -> bool:
+        if not source_finished:
+            self._done_tick = None
+            return False
+        if self.present is None or self.q_cmd is None:
+            return True  # a dry run (or nothing ran): the goals are the result
+        if self._done_tick is None:
+            self._done_tick = tick
+        return self.settled() or tick - self._done_tick >= self.ticks
+
+    def settled(self) -> bool:
+        """The read-back has settled on the command: within 0.6 of a position tick, or within ``SETTLE_TOLERANCE``
+        and unchanged since the tick before (a servo that stopped short)."""
+        if self.present is None or self.q_cmd is None:
+            return False
+        off = float(np.max(np.abs(self.present - self.q_cmd)))
+        still = self.previous is not None and np.array_equal(self.present, self.previous)
+        return off <= 0.6 * TICK or (still and off <= SETTLE_TOLERANCE)
+
+
 class _Run(TargetSource):
     """The follower seen by the loop: adds the end condition (the source finished and the servos settled)."""
 
     observes = True
 
-    def __init__(self, follower: Follower, settle_ticks: int):
-        self.follower = follower
-        self.settle_ticks = settle_ticks
-        self.present: npt.NDArray[np.float64] | None = None
-        self.previous: npt.NDArray[np.float64] | None = None
-        self.q_cmd: npt.NDArray[np.float64] | None = None
-        self._done_tick: int | None = None
+    def __init__(self, follower: Follower, settle: Settle):
+        self.follower, self.settle = follower, settle
 
     def start(self, q_start: npt.NDArray[np.float64]) -> int:
         return self.follower.start(q_start)
@@ -493,27 +524,10 @@ class _Run(TargetSource):
 
     def observe(self, tick: int, q_cmd: npt.NDArray[np.float64], q_present: npt.NDArray[np.float64] | None) -> None:
         self.follower.observe(tick, q_cmd, q_present)
-        self.q_cmd, self.previous, self.present = q_cmd, self.present, q_present
+        self.settle.observe(q_cmd, q_present)
 
     def finished(self, tick: int) -> bool:
-        if not self.follower.finished(tick):
-            self._done_tick = None
-            return False
-        if self.present is None or self.q_cmd is None:
-            return True  # a dry run (or nothing ran): the goals are the result
-        if self._done_tick is None:
-            self._done_tick = tick
-        return settled(self.present, self.previous, self.q_cmd) or tick - self._done_tick >= self.settle_ticks
-
-
-def settled(
-    present: npt.NDArray[np.float64], previous: npt.NDArray[np.float64] | None, q_cmd: npt.NDArray[np.float64]
-) -> bool:
-    """The read-back ``present`` ``(n_joints,)`` rad has settled on the commanded ``q_cmd``: within 0.6 of a
-    position tick, or within ``SETTLE_TOLERANCE`` and unchanged since ``previous`` (a servo that stopped short)."""
-    off = float(np.max(np.abs(present - q_cmd)))
-    still = previous is not None and np.array_equal(present, previous)
-    return off <= 0.6 * TICK or (still and off <= SETTLE_TOLERANCE)
+        return self.settle.finished(tick, self.follower.finished(tick))
 
 
 #: The largest ``tolerance`` (m) of a follower or a teleop run: past it "reached" says nothing (``1e300`` made
@@ -568,7 +582,7 @@ def run_teleop(
     """
     tolerance = require_tolerance(tolerance)
     trajectory = Trajectory(reference=lambda _record: follower.reference)  # for the tracking error
-    run = _Run(follower, settle_ticks=max(1, int(round(require_positive(settle_time, "settle_time") * config.rate))))
+    run = _Run(follower, Settle(settle_time, config.rate))
     try:
         stats = run_ticks(
             arm,
