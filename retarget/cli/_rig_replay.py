@@ -46,9 +46,9 @@ from retarget.cli.rig import parse_ports
 from retarget.control.bus import ShutdownMode, connected
 from retarget.control.clock import Clock, MonotonicClock, VirtualClock
 from retarget.control.loop import LoopConfig, TickRecord, run_ticks
+from retarget.control.park import RouteMoves
 from retarget.control.replay import LeadIn
 from retarget.control.safety import Route, plan_route, require_route
-from retarget.control.source import JointGoal, TargetSource, TickGoal
 from retarget.errors import BusError, ConfigError
 from retarget.rig import Rig, RigBus, RigReplay, RigSummary, load_rig
 from retarget.rig.check import RigGoalCheck, RigRoutes
@@ -167,23 +167,6 @@ def check_rig_moves(replay: RigReplay, *, first: Array | None, rest: bool) -> No
         require_route(routes, plant.home, plant.rest, waypoints=(), what="move of the rig's arms to rest")
 
 
-class _Moves(TargetSource):
-    """The ticks of a route (slots ``-n .. -1``), then the end."""
-
-    def __init__(self, route: Route):
-        self.route = route
-
-    def start(self, q_start: Array) -> int:
-        return -self.route.n_slots
-
-    def target_at(self, tick: int, t: float) -> TickGoal:
-        goal: JointGoal = self.route.goal(tick)
-        return goal
-
-    def finished(self, tick: int) -> bool:
-        return tick >= 0
-
-
 def park_rig(replay: RigReplay, bus: RigBus) -> bool:
     """Before the drivers' REST shutdown: drive every arm to its rest pose through the tick loop, on a route the
     arms together keep clear on (straight, else through their homes), each goal checked arm against arm.  When no
@@ -214,7 +197,7 @@ def park_rig(replay: RigReplay, bus: RigBus) -> bool:
         legs.append(LeadIn.plan(start, pose, speed=speed, rate=cfg.rate, target=target, accel=plant.max_acceleration))
         start = pose
     solver = replay.loops[replay.rig.names[0]].solver  # never called: every goal is a JointGoal
-    run_ticks(plant, _Moves(Route(tuple(legs))), solver, config=replace(cfg, max_ticks=None), clock=replay.clock,
+    run_ticks(plant, RouteMoves(Route(tuple(legs))), solver, config=replace(cfg, max_ticks=None), clock=replay.clock,
               bus=bus, goal_check=check)  # fmt: skip
     return True
 

@@ -30,7 +30,7 @@ from retarget.control.safety import Route, plan_route, require_route
 from retarget.control.source import JointGoal, TargetSource, TickGoal
 from retarget.ik.ccd import CCDSolver
 
-__all__ = ["check_moves", "park"]
+__all__ = ["RouteMoves", "check_moves", "park"]
 
 log = logging.getLogger(__name__)
 
@@ -47,8 +47,8 @@ def check_moves(arm: Arm, config: LoopConfig, *, first: npt.NDArray[np.float64] 
         require_route(model, arm.home, arm.rest, waypoints=(), what="move to the rest pose")
 
 
-class _Moves(TargetSource):
-    """The ticks of a route (slots ``-n .. -1``), then the end."""
+class RouteMoves(TargetSource):
+    """The ticks of a route (slots ``-n .. -1``), then the end: a move played on its own through the tick loop."""
 
     def __init__(self, route: LeadIn | Route):
         self.route = route
@@ -84,6 +84,6 @@ def park(arm: Arm, bus: Bus, *, config: LoopConfig, clock: Clock, stop: threadin
     speed = np.minimum(config.lead_in_speed or 0.5, config.velocity_scale * arm.max_velocity)
     target = np.asarray(arm.fk(route[0])[0][:3, 3], dtype=np.float64)
     leg = LeadIn.plan(q, route[0], speed=speed, rate=config.rate, target=target, accel=arm.max_acceleration)
-    run_ticks(arm, _Moves(leg), CCDSolver(arm), config=replace(config, max_ticks=None), clock=clock, bus=bus,
+    run_ticks(arm, RouteMoves(leg), CCDSolver(arm), config=replace(config, max_ticks=None), clock=clock, bus=bus,
               stop=stop)  # fmt: skip
     return True
