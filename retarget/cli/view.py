@@ -13,8 +13,9 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from retarget.cli._rig_run import RigInputs, add_rig_option, load_rig_inputs, refuse_arm_options, rig_replay
 from retarget.cli._view import add_view_arguments, outputs, serve_until_interrupted, start_web
@@ -24,6 +25,9 @@ from retarget.control import TickRecord
 from retarget.control.clock import VirtualClock
 from retarget.errors import ConfigError
 from retarget.rig import RigReplay
+
+if TYPE_CHECKING:
+    from retarget.view.sinks import Outputs
 
 EXAMPLES = """\
 examples:
@@ -110,16 +114,23 @@ def run(args: argparse.Namespace) -> int:
         print(f"retarget: {len(records)} ticks of {inputs.clip.name} -> {args.png}", file=sys.stderr)
         return 0
     from retarget.view.rerun_log import log_ticks
+
+    what = f"{len(records)} ticks of {inputs.clip.name} on {inputs.arm.name}"
+    return _record(out, scene, inputs.clip.name, lambda rec: log_ticks(rec, scene, columns), what)
+
+
+def _record(out: Outputs, scene: Any, name: str, log: Callable[[Any], None], what: str) -> int:
+    """Log a solved clip's ``scene`` and ticks (``log(recording)``) to the Rerun outputs ``out``, say ``what`` was
+    logged on stderr, then serve the web viewer (if asked) until Ctrl-C (exit 130)."""
     from retarget.view.sinks import open_recording
 
     web = start_web(out)
     try:
-        with open_recording(scene, out, name=inputs.clip.name, web=web) as rec:
-            log_ticks(rec, scene, columns)
-        where = f" -> {out.record}" if out.record is not None else ""
-        print(f"retarget: {len(records)} ticks of {inputs.clip.name} on {inputs.arm.name}{where}", file=sys.stderr)
+        with open_recording(scene, out, name=name, web=web) as rec:
+            log(rec)
+        print(f"retarget: {what}" + (f" -> {out.record}" if out.record is not None else ""), file=sys.stderr)
         if web is not None:
-            serve_until_interrupted(web)  # until Ctrl-C: exit 130
+            serve_until_interrupted(web)
     finally:
         if web is not None:
             web.close()
@@ -156,19 +167,9 @@ def _run_rig(args: argparse.Namespace) -> int:
         print(f"retarget: {what} -> {args.png}", file=sys.stderr)
         return 0
     from retarget.view.rerun_log import log_rig_ticks
-    from retarget.view.sinks import open_recording
 
-    web = start_web(out)
-    try:
-        with open_recording(scene, out, name=f"{inputs.clip.name} on {inputs.rig.name}", web=web) as rec:
-            log_rig_ticks(rec, scene, columns)
-        print(f"retarget: {what}" + (f" -> {out.record}" if out.record is not None else ""), file=sys.stderr)
-        if web is not None:
-            serve_until_interrupted(web)  # until Ctrl-C: exit 130
-    finally:
-        if web is not None:
-            web.close()
-    return 0
+    name = f"{inputs.clip.name} on {inputs.rig.name}"
+    return _record(out, scene, name, lambda rec: log_rig_ticks(rec, scene, columns), what)
 
 
 def _serve_recording(args: argparse.Namespace) -> int:
