@@ -94,7 +94,20 @@ def _reader_gate(gate: RigGate) -> TargetGate:
     return TargetGate(first.bounds, clock=first.clock, max_bytes=gate.max_bytes, counter=gate.rejects)
 
 
-class RigStdinSource(StdinSource):
+class _IntoRig(Source):
+    """A one-arm reader whose messages go to a :class:`RigInput` (``rig_input``) and whose end closes it."""
+
+    rig_input: RigInput
+
+    def feed(self, data: str | bytes) -> None:
+        self.rig_input.feed(data, source=self.name)
+
+    def _finish(self) -> None:
+        super()._finish()
+        self.rig_input.close()
+
+
+class RigStdinSource(_IntoRig, StdinSource):
     """Two-arm messages from lines of a stream (default stdin's bytes) into ``rig_input``; end of input closes it.
     A line over the size limit is counted ``OVERSIZE`` for the message."""
 
@@ -102,24 +115,10 @@ class RigStdinSource(StdinSource):
         super().__init__(_reader_gate(rig_input.gate), stream)
         self.rig_input = rig_input
 
-    def feed(self, data: str | bytes) -> None:
-        self.rig_input.feed(data, source=self.name)
 
-    def _finish(self) -> None:
-        super()._finish()
-        self.rig_input.close()
-
-
-class RigUdpSource(UdpSource):
+class RigUdpSource(_IntoRig, UdpSource):
     """Two-arm messages from UDP datagrams on ``host:port`` (default loopback) into ``rig_input``."""
 
     def __init__(self, rig_input: RigInput, host: str = DEFAULT_UDP_HOST, port: int = 0):
         super().__init__(_reader_gate(rig_input.gate), host, port)
         self.rig_input = rig_input
-
-    def feed(self, data: str | bytes) -> None:
-        self.rig_input.feed(data, source=self.name)
-
-    def _finish(self) -> None:
-        super()._finish()
-        self.rig_input.close()
