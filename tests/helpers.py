@@ -5,10 +5,12 @@ test modules import helpers from here, never from each other.
 
 from __future__ import annotations
 
+import collections
 import json
 import math
 import os
 import random
+import signal
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -1377,3 +1379,21 @@ def sampled_min_clearance(rig, poses, spacing=0.004):
     (pa, ra), (pb, rb) = clouds
     gaps = np.linalg.norm(pa[:, None] - pb[None], axis=-1) - ra[:, None] - rb[None]
     return float(gaps.min())
+
+
+class SignalAfterSyncWrites(collections.deque):  # type: ignore[type-arg]
+    """A simulator log (``simbus.log``) that sends ``signum`` (default SIGINT, as Ctrl-C) to this process when the
+    ``n``-th SYNC_WRITE is logged: counted as each instruction is appended, under the simulator's lock, so nothing
+    iterates the log while the loop appends to it, and no watcher thread can be starved (or die) and leave a run
+    going.  The signal is handled in the main thread, as from a terminal."""
+
+    def __init__(self, n: int, signum: int = signal.SIGINT, *, maxlen: int | None):
+        super().__init__(maxlen=maxlen)
+        self.n, self.signum, self.sync_writes = n, signum, 0
+
+    def append(self, entry: LogEntry) -> None:
+        super().append(entry)
+        if entry.instruction == Instruction.SYNC_WRITE:
+            self.sync_writes += 1
+            if self.sync_writes == self.n:
+                os.kill(os.getpid(), self.signum)

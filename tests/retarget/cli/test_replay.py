@@ -2,10 +2,8 @@
 
 from __future__ import annotations
 
-import collections
 import csv
 import json
-import os
 import re
 import signal
 import time
@@ -15,7 +13,7 @@ import pytest
 
 import retarget
 from retarget.cli import main
-from tests.helpers import servo_angles, torque
+from tests.helpers import SignalAfterSyncWrites, servo_angles, torque
 
 
 def replay(capsys, *args: str) -> tuple[int, str, str]:
@@ -115,27 +113,10 @@ def test_progress_lines_on_request(capsys):
     assert shown == sorted(shown) and all(0.0 <= t <= 2.5 for t in shown)
 
 
-class CtrlCAfterSyncWrites(collections.deque):
-    """A simulator log (``simbus.log``) that sends a real SIGINT to this process when the ``n``-th SYNC_WRITE is
-    logged: counted as each instruction is appended, under the simulator's lock, so nothing iterates the log
-    while the loop appends to it, and no watcher thread can be starved (or die) and leave a run going."""
-
-    def __init__(self, n: int, *, maxlen: int | None):
-        super().__init__(maxlen=maxlen)
-        self.n, self.sync_writes = n, 0
-
-    def append(self, entry) -> None:
-        super().append(entry)
-        if entry.instruction == SYNC_WRITE:
-            self.sync_writes += 1
-            if self.sync_writes == self.n:
-                os.kill(os.getpid(), signal.SIGINT)  # handled in the main thread, as from a terminal
-
-
 @pytest.mark.parametrize("lead_in", ["0.05", "0"], ids=["during-the-lead-in", "no-lead-in"])
 def test_sigint_stops_cleanly_through_the_shutdown_sequence(arm, registered, capsys, lead_in):
     simbus, url = registered
-    simbus.log = CtrlCAfterSyncWrites(20, maxlen=simbus.log.maxlen)  # Ctrl-C once the loop has sent 20 writes
+    simbus.log = SignalAfterSyncWrites(20, maxlen=simbus.log.maxlen)  # Ctrl-C once the loop has sent 20 writes
     # --max-ticks bounds the --loop run (the lead-in is finite too): were no Ctrl-C to come, the run would end
     # with exit 0 and fail below instead of hanging
     code, out, err = replay(
@@ -170,9 +151,6 @@ def test_a_servo_lost_mid_run_reports_that_failure_not_the_shutdown_after_it(cap
     assert 150 <= len(rows) <= 212
     assert rows[-1]["stale"] != "0"  # the ticks after the unplug went on with servo 4's last position, marked
     assert rows[-1]["bus_retries"] != ""
-
-
-SYNC_WRITE = 0x83
 
 
 def no_arms_bvh(tmp_path):

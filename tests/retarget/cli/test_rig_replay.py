@@ -3,10 +3,8 @@
 
 from __future__ import annotations
 
-import collections
 import csv
 import json
-import os
 import re
 import signal
 
@@ -18,12 +16,11 @@ import sim
 from retarget.cli import main
 from retarget.control.clock import VirtualClock
 from sim.faults import Faults
-from tests.helpers import servo_angles, torque, wx250s_tool
+from tests.helpers import SignalAfterSyncWrites, servo_angles, torque, wx250s_tool
 
 RIG = "wx250s-pair"
 BASE_Y = {"left": 0.3, "right": -0.3}  #: config/rigs/wx250s-pair.toml: each base's y in the world, no rotation
 NAMES = ("left", "right")
-SYNC_WRITE = 0x83
 
 
 def replay(capsys, *args: str) -> tuple[int, str, str]:
@@ -157,21 +154,6 @@ def test_a_dry_run_writes_both_arms_telemetry_with_nothing_read_back(capsys):
     assert len(rows) == 21 and all(r["lead_in"] == "0" for r in rows)
     assert all(r["left/waist_present_rad"] == "" and r["right/waist_cmd_rad"] != "" for r in rows)
     assert "dry run: demo.bvh on wx250s-pair" in err
-
-
-class SignalAfterSyncWrites(collections.deque):
-    """A simulator log that sends ``signum`` to this process when the ``n``-th SYNC_WRITE is logged."""
-
-    def __init__(self, n: int, signum: int, *, maxlen: int | None):
-        super().__init__(maxlen=maxlen)
-        self.n, self.signum, self.sync_writes = n, signum, 0
-
-    def append(self, entry) -> None:
-        super().append(entry)
-        if entry.instruction == SYNC_WRITE:
-            self.sync_writes += 1
-            if self.sync_writes == self.n:
-                os.kill(os.getpid(), self.signum)
 
 
 def test_sigterm_in_the_lead_in_stops_at_a_tick_and_both_arms_go_to_rest(arm, pair, capsys):

@@ -5,7 +5,6 @@ interrupts at once.  Also: ``--json`` after a bus failure, and ``--recover``."""
 from __future__ import annotations
 
 import argparse
-import collections
 import csv
 import json
 import os
@@ -21,14 +20,13 @@ import pytest
 
 from retarget.cli import main
 from retarget.cli._bus import SignalInterrupt, build_bus, signals_stop
-from tests.helpers import servo_angles, torque
+from tests.helpers import SignalAfterSyncWrites, servo_angles, torque
 
 pytestmark = pytest.mark.skipif(
     not all(hasattr(signal, name) for name in ("SIGTERM", "SIGHUP")) or sys.platform == "win32",
     reason="needs POSIX signals (SIGTERM, SIGHUP)",
 )
 
-SYNC_WRITE = 0x83
 SIGNALS = [
     pytest.param("SIGTERM", 143, id="SIGTERM"),
     pytest.param("SIGHUP", 129, id="SIGHUP"),
@@ -61,22 +59,6 @@ def test_the_first_signal_stops_the_second_interrupts_and_the_handlers_come_back
 
 
 # --------------------------------------------------------------------------------------------- in process
-
-
-class SignalAfterSyncWrites(collections.deque):
-    """A simulator log that sends ``signum`` to this process when the ``n``-th SYNC_WRITE is logged (see
-    ``test_replay.CtrlCAfterSyncWrites``)."""
-
-    def __init__(self, n: int, signum: int, *, maxlen: int | None):
-        super().__init__(maxlen=maxlen)
-        self.n, self.signum, self.sync_writes = n, signum, 0
-
-    def append(self, entry) -> None:
-        super().append(entry)
-        if entry.instruction == SYNC_WRITE:
-            self.sync_writes += 1
-            if self.sync_writes == self.n:
-                os.kill(os.getpid(), self.signum)
 
 
 @pytest.mark.parametrize(("name", "status"), SIGNALS)
