@@ -158,7 +158,7 @@ def _run_rig(args: argparse.Namespace) -> int:
 
     table = any(m.world.table for m in inputs.models.values())
     scene = RigScene.for_clip(inputs.motion, inputs.rig, inputs.targets, table=table)
-    columns = arm_columns(records, replay.arm_record, inputs.rig.names)
+    columns = arm_columns(records, replay.arm_record, inputs.rig, rate=replay.config.rate)
     what = f"{len(records)} ticks of {inputs.clip.name} on rig {inputs.rig.name}"
     if args.png is not None:
         from retarget.view.rig_sheet import rig_contact_sheet

@@ -28,7 +28,7 @@ import numpy.typing as npt
 
 from retarget.arm.model import Arm
 
-__all__ = ["Following", "TickTracker", "Trajectory", "following"]
+__all__ = ["AT_LIMIT", "Following", "TickTracker", "Trajectory", "at_velocity_limit", "following"]
 
 Array = npt.NDArray[np.float64]
 
@@ -110,6 +110,26 @@ class Trajectory:
 
     def __len__(self) -> int:
         return len(self.slots)
+
+
+#: A joint commanded at this fraction of its max velocity or more is at its velocity limit.
+AT_LIMIT = 0.999
+
+
+def at_velocity_limit(q_cmd: npt.ArrayLike, *, rate: float, max_velocity: npt.ArrayLike) -> npt.NDArray[np.bool_]:
+    """Per tick of the commanded joints ``q_cmd`` ``(n, n_joints)`` rad at ``rate`` ticks/s: some joint moved at
+    :data:`AT_LIMIT` of its ``max_velocity`` ``(n_joints,)`` rad/s or more since the tick before (the first tick:
+    False); ``(n,)`` bool.  Unlike the loop's limiter flag, a path planned ahead that runs at full speed counts.
+
+    >>> at_velocity_limit([[0.0, 0.0], [0.01, 0.02], [0.02, 0.03]], rate=100.0, max_velocity=[1.0, 2.0]).tolist()
+    [False, True, True]
+    """
+    q = np.asarray(q_cmd, dtype=np.float64)
+    flags = np.zeros(len(q), dtype=bool)
+    if len(q) > 1:
+        speeds = np.abs(np.diff(q, axis=0)) * rate
+        flags[1:] = np.any(speeds >= AT_LIMIT * np.asarray(max_velocity, dtype=np.float64), axis=1)
+    return flags
 
 
 def following(arm: Arm, trajectory: Trajectory, *, rate: float, reference: Reference | None = None) -> Following | None:

@@ -38,7 +38,7 @@ from retarget.control.safety import Route
 from retarget.control.source import JointGoal, TargetSource, TickGoal
 from retarget.control.stats import TickStats
 from retarget.control.summary import ik_figures
-from retarget.control.tracking import Trajectory, following
+from retarget.control.tracking import Trajectory, at_velocity_limit, following
 from retarget.errors import BusError
 from retarget.rig.check import RigGoalCheck, RigRoutes
 from retarget.rig.clearance import RigClearance
@@ -293,8 +293,7 @@ def _summarize(replay: RigReplay, ticks: TickStats, records: list[TickRecord], *
         trajectory = Trajectory()
         trajectory.slots, trajectory.clip_times = list(slots), list(clip_times)
         trajectory.targets, trajectory.q_cmd = list(targets_all[:, 3 * i : 3 * i + 3]), list(q)
-        speeds = np.abs(np.diff(q, axis=0)) * rate
-        limited = int(np.count_nonzero(np.any(speeds >= 0.999 * replay.plant.max_velocity[part], axis=1)))
+        limited = int(np.count_nonzero(at_velocity_limit(q, rate=rate, max_velocity=replay.plant.max_velocity[part])))
         path = replay.paths[a.name]
         ik = ik_figures(path.error[played], path.sweeps[played], path.converged[played])
         summary = replace(

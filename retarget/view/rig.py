@@ -14,13 +14,14 @@ human's :class:`~retarget.view.scene.Scene` (layout OVERLAY) has the world as it
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from retarget.arm.model import Arm
 from retarget.bvh.motion import Motion
 from retarget.control.loop import TickRecord
+from retarget.control.tracking import at_velocity_limit
 from retarget.mapping.body import mapping_frames
 from retarget.mapping.config import Side
 from retarget.rig.mapping import RigTargets
@@ -160,9 +161,16 @@ def upper_body(motion: Motion, skeleton: Skeleton) -> np.ndarray:
 
 
 def arm_columns(
-    records: Sequence[TickRecord], split: Callable[[TickRecord, str], TickRecord], names: Sequence[str]
+    records: Sequence[TickRecord], split: Callable[[TickRecord, str], TickRecord], rig: Rig, *, rate: float
 ) -> dict[str, TickColumns]:
     """Each arm's :class:`~retarget.view.columns.TickColumns` (its target in its base frame, its joints, its IK),
-    by arm name, from the rig's tick ``records`` and ``split(record, name)``
-    (:meth:`~retarget.rig.replay.RigReplay.arm_record`)."""
-    return {name: TickColumns.of([split(r, name) for r in records]) for name in names}
+    by arm name, from the rig's tick ``records`` (``rate`` ticks/s) and ``split(record, name)``
+    (:meth:`~retarget.rig.replay.RigReplay.arm_record`).  ``velocity_limited`` is the arm's own
+    (:func:`~retarget.control.tracking.at_velocity_limit` of its commanded joints, as its summary counts it), not
+    the rig's limiter flag, which is one for every arm."""
+    columns = {}
+    for a in rig.arms:
+        own = TickColumns.of([split(r, a.name) for r in records])
+        limited = at_velocity_limit(own.q_cmd, rate=rate, max_velocity=a.arm.max_velocity)
+        columns[a.name] = replace(own, velocity_limited=limited)
+    return columns

@@ -4,6 +4,7 @@ written, and the options that name one arm or a one-arm output refused in one li
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -11,6 +12,8 @@ import pytest
 
 from retarget.cli import build_parser, main
 from retarget.cli.view import solve_rig
+from retarget.control.loop import TickRecord
+from retarget.rig.plant import RigPlant
 from retarget.view.rig import RigScene, arm_columns
 
 #: a rig whose bases are turned and raised, so a missing rotation or offset shows
@@ -50,7 +53,7 @@ def solved(rig_file):
     args = build_parser().parse_args(["view", "--rig", str(rig_file), "--end", "1.5", "--no-filter"])
     inputs, replay, records = solve_rig(args)
     scene = RigScene.for_clip(inputs.motion, inputs.rig, inputs.targets)
-    return inputs, scene, arm_columns(records, replay.arm_record, inputs.rig.names)
+    return inputs, scene, arm_columns(records, replay.arm_record, inputs.rig, rate=replay.config.rate)
 
 
 def test_each_arm_is_drawn_at_its_base_pose(solved):
@@ -72,6 +75,31 @@ def test_each_arm_is_drawn_at_its_base_pose(solved):
     # the two arms are apart where their bases are: the waists' origins 0.64 m apart across y
     waists = [scene.arm_points(n, cols[n].q_cmd[:1])[0][0, 0] for n in POSES]
     assert waists[0][1] - waists[1][1] == pytest.approx(0.64, abs=1e-9)
+
+
+def test_each_arms_velocity_limited_marks_are_its_own_not_the_rigs_flag(solved):
+    """The rig's limiter flag is one for both arms: each arm's marks come from its own commanded speeds."""
+    rig = solved[0].rig
+    plant = RigPlant.of(rig)
+    port, starboard = plant.slices
+    vmax = rig.arms[0].arm.max_velocity
+    records = []
+    for tick in range(5):  # port's waist at its full speed from tick 1 on, starboard still; the rig flag always set
+        q = plant.join({a.name: a.arm.home for a in rig.arms})
+        q[port.start] += vmax[0] / 100.0 * tick
+        records.append(TickRecord(tick=tick, time=tick / 100, clip_time=tick / 100, target=np.zeros(6), q_cmd=q,
+                                  q_present=None, ik_error=0.0, ik_sweeps=0, ik_converged=True, compute_time=0.0,
+                                  bus_time=0.0, clamped=False, velocity_limited=True, overrun=False, bus_retries=0,
+                                  lead_in=False))  # fmt: skip
+
+    def split(record: TickRecord, name: str) -> TickRecord:
+        part = port if name == "port" else starboard
+        i = rig.names.index(name)
+        return dataclasses.replace(record, q_cmd=record.q_cmd[part], target=record.target[3 * i : 3 * i + 3])
+
+    columns = arm_columns(records, split, rig, rate=100.0)
+    assert columns["port"].velocity_limited.tolist() == [False, True, True, True, True]
+    assert columns["starboard"].velocity_limited.tolist() == [False] * 5
 
 
 def test_each_human_wrist_lands_on_its_own_arms_world_target(solved):
