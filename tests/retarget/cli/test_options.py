@@ -6,7 +6,7 @@ import argparse
 
 import pytest
 
-from retarget.cli import build_parser
+from retarget.cli import build_parser, named_command
 from retarget.cli.options import OPTIONS, option_error
 from retarget.errors import ConfigError
 
@@ -39,3 +39,23 @@ def test_the_renamed_error_keeps_message_and_value():
     renamed = option_error(ConfigError("Expected a tick rate > 0 Hz", key="rate", value=0.0))
     assert (renamed.key, renamed.message, renamed.value) == ("--rate", "Expected a tick rate > 0 Hz", 0.0)
     assert str(option_error(ConfigError("no value", key="rate"))) == "--rate: no value"
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["export", "clip.bvh", "--arm", "koch", "--side", "left", "-o", "t.csv"],
+        ["-v", "replay", "--fast", "--rate", "50"],
+        ["teleop", "--to", "0.3,0,0.2", "-v"],
+        ["arm", "wx250s", "--check", "0,0,0,0,0,0", "--json"],
+    ],
+    ids=["export", "verbose-first", "verbose-after", "arm-check"],
+)
+def test_the_named_command_alone_parses_as_the_whole_parser(argv):
+    def parsed(parser: argparse.ArgumentParser) -> dict[str, object]:
+        values = vars(parser.parse_args(argv))
+        return {**values, "_run": values["_run"].__module__}
+
+    assert parsed(build_parser(named_command(argv))) == parsed(build_parser())
+    sub = next(a for a in build_parser(named_command(argv))._actions if isinstance(a, argparse._SubParsersAction))
+    assert list(sub.choices) == [named_command(argv)]
