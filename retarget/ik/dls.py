@@ -47,6 +47,7 @@ class Chain(Protocol):
     _ax: list[float]
     _ay: list[float]
     _az: list[float]
+    _fk_memo: tuple[list[float], tuple[float, ...]] | None
 
     def _fk(self, q: list[float]) -> tuple[float, ...]: ...
 
@@ -77,7 +78,8 @@ def dls_steps(
     w, lower, upper = s._w, s._lo, s._hi
     px, py, pz, ax, ay, az = s._px, s._py, s._pz, s._ax, s._ay, s._az
     lam2 = base2 = damping * damping
-    f = s._fk(q)
+    memo = s._fk_memo  # the buffers may still hold q's forward pass, from the last call's end
+    f = memo[1] if memo is not None and memo[0] == q else s._fk(q)
     ex, ey, ez = f[0], f[1], f[2]
     dx, dy, dz = tx - ex, ty - ey, tz - ez
     err2 = dx * dx + dy * dy + dz * dz
@@ -130,13 +132,14 @@ def dls_steps(
         new2 = nx * nx + ny * ny + nz * nz
         if new2 >= err2:  # no progress: take the step back, damp harder
             q[:] = old
-            s._fk(q)
+            f = s._fk(q)
             lam2 *= 4.0
             continue
         lam2 = max(base2, lam2 * 0.25)
         ex, ey, ez = f[0], f[1], f[2]
         dx, dy, dz = nx, ny, nz
         err2 = new2
+    s._fk_memo = (q[:], f)  # f is q's pass, and the buffers hold it
     return err2, taken
 
 
