@@ -24,6 +24,7 @@ more than the math, and on a bus that time sits between the last reply and the n
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -157,13 +158,22 @@ class StepLimiter:
         limited = False
         q_next, v_next = [], []
         far = self._far
+        sqrt, floor = math.sqrt, math.floor
         # profile_step inlined (it is the reference, tested against this), except that a joint limit's braking
         # bound is computed only within a braking run of it (farther off it allows a full step anyway)
         for i, (x0, v, g, m, a, (lo, hi)) in enumerate(zip(self.q, v0, goal, limits, accel, self.bounds, strict=True)):
             u = 0.0 if last is None else (g - last[i]) / elapsed
             u = m if u > m else -m if u < -m else u
             d = g - x0 - u
-            w = u if d == 0.0 else u + stop_speed(d, a) if d > 0.0 else u - stop_speed(-d, a)
+            if d > 0.0:  # u + stop_speed(d, a), inlined (the same expressions, so the same floats)
+                n = floor((sqrt(1.0 + 8.0 * d / a) - 1.0) * 0.5)
+                w = u + (d + a * n * (n + 1) * 0.5) / (n + 1)
+            elif d < 0.0:  # u - stop_speed(-d, a)
+                d = -d
+                n = floor((sqrt(1.0 + 8.0 * d / a) - 1.0) * 0.5)
+                w = u - (d + a * n * (n + 1) * 0.5) / (n + 1)
+            else:
+                w = u
             low, high = v - a, v + a
             if low < -m:
                 low = -m
