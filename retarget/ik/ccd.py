@@ -296,9 +296,9 @@ class CCDSolver:
         self._ax = [0.0] * n
         self._ay = [0.0] * n
         self._az = [0.0] * n
-        #: ``(q, tool pose)`` while the buffers hold the forward pass of ``q`` as the DLS steps left it (the next
-        #: tick's warm start is most often that ``q``: its pass is not run twice); None once the buffers change
-        self._fk_memo: tuple[list[float], tuple[float, ...]] | None = None
+        #: the forward pass the DLS steps ended on: ``(q, tool pose, the six buffers' contents)`` (the next tick's
+        #: warm start is most often that ``q``: its pass is copied back instead of run again)
+        self._fk_memo: tuple[list[float], tuple[float, ...], tuple[list[float], ...]] | None = None
         #: the collision model every result is verified against (None: none, no cost)
         self.collision = collision
         self._guard = None if collision is None else CollisionGuard(self, collision)
@@ -307,7 +307,6 @@ class CCDSolver:
     def _fk(self, q: list[float]) -> _ToolPose:
         """Forward pass over ``q``: fills the world pivots/axes buffers and returns 12 floats,
         the tool point ``(x, y, z)`` then the tool rotation row by row."""
-        self._fk_memo = None
         px, py, pz, ax, ay, az = self._px, self._py, self._pz, self._ax, self._ay, self._az
         r00 = r11 = r22 = 1.0
         r01 = r02 = r10 = r12 = r20 = r21 = 0.0
@@ -636,7 +635,6 @@ class CCDSolver:
         warm-start corrections end with the smallest joint motion.
         """
         f = self._fk(q) if fresh is None else fresh
-        self._fk_memo = None  # the pivots and axes turn in place below
         ex, ey, ez = f[0], f[1], f[2]
         px, py, pz, ax, ay, az = self._px, self._py, self._pz, self._ax, self._ay, self._az
         lower, upper, w = self._lo, self._hi, self._w

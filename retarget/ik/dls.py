@@ -47,7 +47,7 @@ class Chain(Protocol):
     _ax: list[float]
     _ay: list[float]
     _az: list[float]
-    _fk_memo: tuple[list[float], tuple[float, ...]] | None
+    _fk_memo: tuple[list[float], tuple[float, ...], tuple[list[float], ...]] | None
 
     def _fk(self, q: list[float]) -> tuple[float, ...]: ...
 
@@ -78,8 +78,12 @@ def dls_steps(
     w, lower, upper = s._w, s._lo, s._hi
     px, py, pz, ax, ay, az = s._px, s._py, s._pz, s._ax, s._ay, s._az
     lam2 = base2 = damping * damping
-    memo = s._fk_memo  # the buffers may still hold q's forward pass, from the last call's end
-    f = memo[1] if memo is not None and memo[0] == q else s._fk(q)
+    memo = s._fk_memo  # the last call's end: when at q, its forward pass is copied back, not run again
+    if memo is not None and memo[0] == q:
+        f = memo[1]
+        px[:], py[:], pz[:], ax[:], ay[:], az[:] = memo[2]
+    else:
+        f = s._fk(q)
     ex, ey, ez = f[0], f[1], f[2]
     dx, dy, dz = tx - ex, ty - ey, tz - ez
     err2 = dx * dx + dy * dy + dz * dz
@@ -139,7 +143,7 @@ def dls_steps(
         ex, ey, ez = f[0], f[1], f[2]
         dx, dy, dz = nx, ny, nz
         err2 = new2
-    s._fk_memo = (q[:], f)  # f is q's pass, and the buffers hold it
+    s._fk_memo = (q[:], f, (px[:], py[:], pz[:], ax[:], ay[:], az[:]))  # f is q's pass, as the buffers are
     return err2, taken
 
 

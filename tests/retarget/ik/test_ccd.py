@@ -334,3 +334,25 @@ def test_pose_tracking_stays_on_its_branch():
         converged += r.converged
         q = r.q
     assert converged >= 0.99 * len(poses)
+
+
+@pytest.mark.parametrize("name", ["wx250s", "koch"])
+def test_a_solve_does_not_depend_on_the_solver_history(name):
+    """The solver keeps its last forward pass for the next warm start (``_fk_memo``): a walk of warm-started
+    solves, with jumps and unreachable targets between (CCD sweeps, restarts), gives bit for bit what a fresh solver
+    gives for each solve."""
+    arm = load_arm(name)
+    used = CCDSolver(arm)
+    rng = np.random.default_rng(7)
+    q = arm.home.copy()
+    point = tool(arm, q)
+    for k in range(150):
+        if k % 5 == 4:  # a jump anywhere within the reach sphere: often unreachable (limits), with restarts
+            target = np.asarray(used.base_pivot) + used.reach * rng.uniform(-1.0, 1.0, 3) / math.sqrt(3.0)
+        else:
+            target = point + rng.normal(0.0, 0.004, 3)
+        result = used.solve(target, q)
+        fresh = CCDSolver(arm).solve(target, q)
+        assert np.array_equal(result.q, fresh.q), k
+        assert (result.error, result.iterations) == (fresh.error, fresh.iterations)
+        q, point = result.q, target
