@@ -140,10 +140,7 @@ class Targets:
                 rotations = _orthonormalize(zero_phase(rotations, 1.0 / frame_time, cutoff_hz))
         else:
             cutoff_hz = 0.0
-        positions, clamped = workspace.clamp(raw)
-        pushed = np.zeros(clamped.shape, dtype=bool)
-        if workspace.blocked is not None:  # which of them were (also) pushed out of a blocked zone
-            _, pushed = workspace.push(workspace.with_blocked(None).clamp(raw)[0])
+        positions, clamped, pushed = workspace.clamp_and_push(raw)
         return cls(
             positions=positions,
             raw=raw,

@@ -239,8 +239,15 @@ class Workspace:
 
         Returns ``(clamped (..., 3), moved (...) bool)``.  Radially onto the shell;
         a point that would end below the floor goes onto the floor instead, straight
-        above the original point, pulled into the ring the shell cuts out of the floor.
+        above the original point, pulled into the ring the shell cuts out of the floor;
+        then out of the blocked zones (:meth:`push`).
         """
+        out, moved, _ = self.clamp_and_push(points)
+        return out, moved
+
+    def clamp_and_push(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`clamp`, and which of the points were pushed out of a blocked zone: ``(clamped (..., 3), moved
+        (...) bool, pushed (...) bool)`` (``pushed`` all False without :attr:`blocked`)."""
         p = np.array(points, dtype=np.float64)
         if p.shape[-1:] != (3,):
             raise ValueError(f"Expected points of shape (..., 3), got {p.shape}")
@@ -264,10 +271,10 @@ class Workspace:
             d[..., 2] = np.where(low, dz, d[..., 2])
         moved = (r < self.r_min) | (r > self.r_max) | low
         out = np.where(moved[..., None], d + self.center, p)
+        pushed = np.zeros(moved.shape, dtype=bool)
         if self.blocked is not None:
             out, pushed = self.push(out)
-            moved = moved | pushed
-        return out, moved
+        return out, moved | pushed, pushed
 
     def clamp_point(self, x: float, y: float, z: float) -> tuple[float, float, float, bool]:
         """:meth:`clamp` of one point in plain floats (~20x faster than numpy for a single point)."""
