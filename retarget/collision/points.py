@@ -41,24 +41,45 @@ class TargetPoints:
     def point_margin(self, p: np.ndarray | Sequence[float]) -> float:
         """Signed distance (metres) of a point ``(3,)`` in the base frame to the blocked zones: below the table,
         inside a keep-out zone, inside a shape on the base frame (negative inside; inf when there are none)."""
-        return float(self._margins(np.asarray(p, dtype=np.float64)).min(initial=math.inf))
+        point = np.asarray(p, dtype=np.float64)
+        if point.shape != (3,) or not np.all(np.isfinite(point)):
+            raise ValueError(f"Expected a finite point of shape (3,), got {p!r}")
+        return float(self._margins(point).min(initial=math.inf))
+
+    def point_margins(self, points: np.ndarray) -> np.ndarray:
+        """:meth:`point_margin` of many points ``(n, 3)`` (base frame, metres) at once: ``(n,)`` metres.
+
+        >>> import retarget
+        >>> from retarget.collision import CollisionModel
+        >>> model = CollisionModel.for_arm(retarget.load_arm("wx250s"), clearance=0.0)
+        >>> model.point_margins(np.array([[0.3, 0.0, 0.2], [0.3, 0.0, -0.05]])).round(3).tolist()  # above, below
+        [0.2, -0.05]
+        """
+        p = np.asarray(points, dtype=np.float64)
+        if p.ndim != 2 or p.shape[1] != 3:
+            raise ValueError(f"Expected points of shape (n, 3), got {p.shape}")
+        bad = np.flatnonzero(~np.isfinite(p).all(axis=1))
+        if bad.size:
+            raise ValueError(f"Expected finite points, got {p[bad[0]].tolist()} (point {int(bad[0])})")
+        margins: np.ndarray = self._margins(p).min(axis=-1, initial=math.inf)
+        return margins
 
     def _margins(self, p: np.ndarray) -> np.ndarray:
-        if p.shape != (3,) or not np.all(np.isfinite(p)):
-            raise ValueError(f"Expected a finite point of shape (3,), got {p!r}")
-        parts = [np.array([p[2]])] if self.world.table else []
+        """Each zone's signed distance of points ``p`` ``(..., 3)``: ``(..., n_zones)`` metres."""
+        at = p[..., None, :]  # (..., 1, 3): against every zone of a kind at once
+        parts = [p[..., 2:3]] if self.world.table else []
         if len(self._sph_c):
-            parts.append(np.linalg.norm(p - self._sph_c, axis=1) - self._sph_r)
+            parts.append(np.linalg.norm(at - self._sph_c, axis=-1) - self._sph_r)
         if len(self._kb_c):
-            parts.append(point_box(p, self._kb_c, self._kb_h))
+            parts.append(point_box(at, self._kb_c, self._kb_h))
         fixed_boxes = self._box_frame == BASE_FRAME
         if fixed_boxes.any():
-            parts.append(point_box(p, self._box_c[fixed_boxes], self._box_h[fixed_boxes]))
+            parts.append(point_box(at, self._box_c[fixed_boxes], self._box_h[fixed_boxes]))
         fixed = np.flatnonzero(self._cap_frame == BASE_FRAME)
         if fixed.size:
             a, b = self._cap_local[fixed, 0], self._cap_local[fixed, 1]
-            parts.append(point_segment(p, a, b) - self._cap_r[fixed])
-        return np.concatenate(parts) if parts else np.empty(0)
+            parts.append(point_segment(at, a, b) - self._cap_r[fixed])
+        return np.concatenate(parts, axis=-1) if parts else np.empty((*p.shape[:-1], 0))
 
     def point_blocked(self, p: np.ndarray | Sequence[float]) -> bool:
         """True when the point ``(3,)`` (base frame, metres) is closer than the clearance to a blocked zone."""
@@ -76,7 +97,7 @@ class TargetPoints:
         [0.3, 0.0, 0.26]
         """
         point = np.array(p, dtype=np.float64)
-        self._margins(point)  # validates
+        self.point_margin(point)  # validates
         m = self.clearance
         for _ in range(32):
             if self.point_margin(point) >= m - 1e-12:

@@ -197,32 +197,17 @@ class Workspace:
 
     def push(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``points`` ``(..., 3)`` metres pushed out of the blocked zones: ``(points (..., 3), pushed (...) bool)``;
-        unchanged without a model.
-
-        A point's margin (its signed distance to the zones) changes by at most as much as the point moves, so
-        along a clip's targets most points need no query: one within ``margin - clearance`` of the last point
-        queried is clear."""
+        unchanged without a model.  Every point's margin (its signed distance to the zones) in one vectorised
+        query; only the blocked ones are pushed, one by one."""
         p = np.array(points, dtype=np.float64)
         pushed = np.zeros(p.shape[:-1], dtype=bool)
         model = self.blocked
         if model is None:
             return p, pushed
         flat, flags = p.reshape(-1, 3), pushed.reshape(-1)
-        clearance = model.clearance
-        rows = flat.tolist()
-        rx = ry = rz = 0.0
-        slack = -math.inf  # margin - clearance of the last point queried (rx, ry, rz)
-        for i, (x, y, z) in enumerate(rows):
-            dx, dy, dz = x - rx, y - ry, z - rz
-            if slack * slack > dx * dx + dy * dy + dz * dz and slack > 0:
-                continue
-            margin = model.point_margin(flat[i])
-            if margin < clearance:
-                flat[i] = model.push_out(flat[i])
-                flags[i] = True
-                slack = -math.inf
-            else:
-                rx, ry, rz, slack = x, y, z, margin - clearance
+        for i in np.flatnonzero(model.point_margins(flat) < model.clearance).tolist():
+            flat[i] = model.push_out(flat[i])
+            flags[i] = True
         return p, pushed
 
     @classmethod

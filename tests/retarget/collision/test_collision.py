@@ -145,6 +145,22 @@ def test_target_points(wx):
     assert model.push_out([0.3, 0.0, 0.21]).tolist() == pytest.approx([0.3, 0.0, 0.26])
 
 
+def test_many_points_margins_are_each_points_own():
+    """``point_margins`` of a cloud (one vectorised call) against ``point_margin`` point by point, with every kind of
+    zone (table, keep-out box and sphere, the base's shapes)."""
+    world = World(keep_out=(Box((0.25, 0.15, 0.1), (0.05, 0.05, 0.1)), Sphere((0.25, -0.15, 0.15), 0.06)))
+    model = CollisionModel.for_arm(load_arm("wx250s"), world=world)
+    points = np.random.default_rng(3).uniform([-0.1, -0.3, -0.1], [0.4, 0.3, 0.4], (300, 3))
+    expected = [model.point_margin(p) for p in points]
+    assert model.point_margins(points).tolist() == pytest.approx(expected, abs=1e-15)
+    assert (model.point_margins(points) < 0).any() and (model.point_margins(points) > 0.05).any()
+    points[7, 1] = math.nan
+    with pytest.raises(ValueError, match=r"Expected finite points, got \[.*nan.*\] \(point 7\)"):
+        model.point_margins(points)
+    with pytest.raises(ValueError, match=r"Expected points of shape \(n, 3\), got \(3,\)"):
+        model.point_margins(points[0])
+
+
 def test_world_validation():
     with pytest.raises(ConfigError, match="radius"):
         Sphere((0, 0, 0), -1)
