@@ -23,7 +23,7 @@ import sys
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import replace
-from typing import IO
+from typing import IO, TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -50,11 +50,17 @@ from retarget.control.park import RouteMoves
 from retarget.control.replay import LeadIn
 from retarget.control.safety import Route, plan_route, require_route
 from retarget.errors import BusError, ConfigError
+from retarget.ik.ccd import CCDSolver
 from retarget.rig import Rig, RigBus, RigReplay, RigSummary, load_rig
 from retarget.rig.check import RigGoalCheck, RigRoutes
+from retarget.rig.clearance import RigClearance
+from retarget.rig.plant import RigPlant
 from retarget.rig.telemetry import RigTelemetry
 
-__all__ = ["check_rig_replay", "park_rig", "replay_rig"]
+if TYPE_CHECKING:
+    from retarget.collision import CollisionModel
+
+__all__ = ["check_rig_replay", "park_arms", "park_rig", "replay_rig"]
 
 log = logging.getLogger(__name__)
 
@@ -168,17 +174,29 @@ def check_rig_moves(replay: RigReplay, *, first: Array | None, rest: bool) -> No
 
 
 def park_rig(replay: RigReplay, bus: RigBus) -> bool:
+    """Before the drivers' REST shutdown: :func:`park_arms` after ``replay``."""
+    return park_arms(replay.plant, bus, config=replay.config, clock=replay.clock, models=replay.models,
+                     between=replay.between)  # fmt: skip
+
+
+def park_arms(
+    plant: RigPlant,
+    bus: RigBus,
+    *,
+    config: LoopConfig,
+    clock: Clock,
+    models: Mapping[str, CollisionModel] | None,
+    between: RigClearance,
+) -> bool:
     """Before the drivers' REST shutdown: drive every arm to its rest pose through the tick loop, on a route the
-    arms together keep clear on (straight, else through their homes), each goal checked arm against arm.  When no
-    route is clear, every arm's bus holds instead of its rest move (torque on) and an error is logged.  Returns
-    True when the arms went to rest."""
-    plant, cfg = replay.plant, replay.config
+    arms together keep clear on (straight, else through their homes), each goal checked arm against arm (``models``
+    each arm's; None: no check).  When no route is clear, every arm's bus holds instead of its rest move (torque
+    on) and an error is logged.  Returns True when the arms went to rest."""
     q = np.clip(np.asarray(bus.read_positions(), dtype=np.float64), plant.lower, plant.upper)
     check = None
-    if replay.models is None:
+    if models is None:
         poses: list[Array] | None = [plant.rest]
     else:
-        models, between = replay.models, replay.between
         poses = plan_route(RigRoutes(plant, models, between), q, plant.rest, waypoints=(plant.home,))
 
         def check(q_start: Array) -> RigGoalCheck:
@@ -190,14 +208,14 @@ def park_rig(replay: RigReplay, bus: RigBus) -> bool:
             if hasattr(arm_bus, "shutdown_mode"):
                 arm_bus.shutdown_mode = ShutdownMode.HOLD
         return False
-    speed = np.minimum(cfg.lead_in_speed or 0.5, cfg.velocity_scale * plant.max_velocity)
-    target = np.concatenate([a.arm.fk(a.arm.rest)[0][:3, 3] for a in replay.rig.arms])  # each arm's base frame
-    legs, start = [], q
+    speed = np.minimum(config.lead_in_speed or 0.5, config.velocity_scale * plant.max_velocity)
+    target = np.concatenate([a.arm.fk(a.arm.rest)[0][:3, 3] for a in plant.rig.arms])  # each arm's base frame
+    legs, start, accel = [], q, plant.max_acceleration
     for pose in poses:
-        legs.append(LeadIn.plan(start, pose, speed=speed, rate=cfg.rate, target=target, accel=plant.max_acceleration))
+        legs.append(LeadIn.plan(start, pose, speed=speed, rate=config.rate, target=target, accel=accel))
         start = pose
-    solver = replay.loops[replay.rig.names[0]].solver  # never called: every goal is a JointGoal
-    run_ticks(plant, RouteMoves(Route(tuple(legs))), solver, config=replace(cfg, max_ticks=None), clock=replay.clock,
+    solver = CCDSolver(plant.rig.arms[0].arm)  # never called: every goal is a JointGoal
+    run_ticks(plant, RouteMoves(Route(tuple(legs))), solver, config=replace(config, max_ticks=None), clock=clock,
               bus=bus, goal_check=check)  # fmt: skip
     return True
 

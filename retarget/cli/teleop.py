@@ -81,6 +81,8 @@ examples:
   retarget teleop --rig aloha --to "left 0.3 0.35 0.2 right 0.3 -0.35 0.2" --fast   both arms, world frame
   printf 'left 0.3 0.35 0.2\\nright 0.3 -0.3 0.25\\n' | retarget teleop --rig wx250s-pair --stdin --dry-run
   retarget teleop --rig aloha --udp 9000 --port left=/dev/ttyUSB0 --port right=/dev/ttyUSB1
+  retarget teleop --rig wx250s-pair --interactive --dry-run     keys move one arm (world frame), Tab the other
+  retarget teleop --rig aloha --stdin --shutdown rest --telemetry rig.csv < moves.txt   both to rest at the end
 """
 
 
@@ -147,7 +149,11 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         metavar="NAME|FILE",
         help="every arm of a rig (aloha, wx250s-pair, a file); 'left x y z right x y z', world frame",
     )
-    b.add_argument("--dry-run", action="store_true", help="with --rig: no bus, a virtual clock, from the rest poses")
+    b.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="with --rig: no bus, from the rest poses, on a virtual clock (--udp, --interactive: real time)",
+    )
     add_bus_arguments(b, shutdown="hold", rig_ports=True)
     add_view_arguments(b, live=True)
     return parser
@@ -267,12 +273,12 @@ def run(args: argparse.Namespace) -> int:
         max_ticks=optional_count(args.max_ticks, option="--max-ticks"),
         ik_tolerance=min(1e-3, opts["tolerance"] / 2),  # a tight --tolerance tightens the IK too
     )
+    if args.interactive and not (sys.stdin.isatty() and sys.stdout.isatty()):
+        raise ConfigError("--interactive needs a terminal on stdin and stdout", key="--interactive", value=True)
     if args.rig is not None:
         from retarget.cli._rig_teleop import run_rig
 
         return run_rig(argparse.Namespace(**{**vars(args), "port": ports}), opts, config)
-    if args.interactive and not (sys.stdin.isatty() and sys.stdout.isatty()):
-        raise ConfigError("--interactive needs a terminal on stdin and stdout", key="--interactive", value=True)
     arm = load_arm_option(args)
     config = dataclasses.replace(config, collision=collision_model(args, arm))
     setup = build_bus(args, arm, config)

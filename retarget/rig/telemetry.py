@@ -17,11 +17,13 @@ from __future__ import annotations
 
 import math
 import os
-from typing import IO
+from collections.abc import Mapping
+from typing import IO, Protocol
 
 from retarget.control.loop import TickRecord
 from retarget.control.tracking import TickTracker
 from retarget.rig.replay import RigReplay
+from retarget.rig.spec import Rig
 
 __all__ = ["RigTelemetry", "rig_columns"]
 
@@ -29,7 +31,17 @@ _RIG = ("time_s", "clip_time_s", "tick", "tick_ms", "compute_ms", "bus_ms", "ove
         "min_clearance_mm")  # fmt: skip
 
 
-def rig_columns(replay: RigReplay) -> list[str]:
+class RigRecords(Protocol):
+    """What the telemetry reads of a rig run: its rig and each arm's part of a tick's record (a :class:`RigReplay`,
+    or a teleop's :class:`~retarget.rig.teleop.RigTeleopRecords`)."""
+
+    @property
+    def rig(self) -> Rig: ...
+
+    def arm_record(self, record: TickRecord, name: str) -> TickRecord: ...
+
+
+def rig_columns(replay: RigRecords) -> list[str]:
     """The header of ``replay``'s telemetry CSV."""
     columns = list(_RIG)
     for a in replay.rig.arms:
@@ -42,7 +54,8 @@ def rig_columns(replay: RigReplay) -> list[str]:
 
 class RigTelemetry:
     """Writes a rig run's tick records to ``target`` (a path, or an open text stream); a context manager, and
-    callable as ``on_tick``.
+    callable as ``on_tick``.  ``trackers``: each arm's tracking error, by arm name (default a replay's, against its
+    clip's mapped targets).
 
     >>> import io
     >>> from retarget.bvh.parse import DEMO_CLIP, load_bvh
@@ -61,12 +74,21 @@ class RigTelemetry:
     (4, 'left/target_x_m')
     """
 
-    def __init__(self, target: str | os.PathLike[str] | IO[str], replay: RigReplay):
+    def __init__(
+        self,
+        target: str | os.PathLike[str] | IO[str],
+        replay: RigRecords,
+        *,
+        trackers: Mapping[str, TickTracker] | None = None,
+    ):
         self.target, self.replay = target, replay
         self.columns = rig_columns(replay)
-        self._trackers = {
-            a.name: TickTracker.for_clip(a.arm, replay.targets.arms[a.name].reference) for a in replay.rig.arms
-        }
+        if trackers is None:  # a clip's: its mapped targets by clip time
+            if not isinstance(replay, RigReplay):
+                raise TypeError("Expected each arm's tracker (trackers=) for a run that is not a RigReplay")
+            trackers = {a.name: TickTracker.for_clip(a.arm, replay.targets.arms[a.name].reference)
+                        for a in replay.rig.arms}  # fmt: skip
+        self._trackers = dict(trackers)
         self._file: IO[str] | None = None
         self._owns = False
 

@@ -38,6 +38,7 @@ from retarget.control.loop import LoopConfig, TickRecord, run_ticks
 from retarget.control.source import HOLD, JointGoal, TargetSource, TickGoal
 from retarget.control.stats import TickStats
 from retarget.control.summary import RunSummary
+from retarget.control.tracking import TickTracker
 from retarget.errors import BusError
 from retarget.ik.result import IKResult
 from retarget.mapping.filter import OneEuro
@@ -55,11 +56,12 @@ from retarget.teleop.follower import (
     require_tolerance,
     rotation_angle,
 )
+from retarget.teleop.sources import Source
 
 if TYPE_CHECKING:
     from retarget.collision import CollisionModel
 
-__all__ = ["RigTeleopResult", "rig_followers", "run_rig_teleop"]
+__all__ = ["RigTeleopRecords", "RigTeleopResult", "rig_followers", "run_rig_teleop"]
 
 Array = npt.NDArray[np.float64]
 
@@ -79,10 +81,12 @@ class _RigRun(TargetSource):
         settle: Settle,
         lockstep: RigInput | None,
         idle_wait: float,
+        records: RigTeleopRecords | None = None,
     ):
         self.plant, self.followers, self.solvers = plant, dict(followers), dict(solvers)
         self.settle, self.lockstep, self.idle_wait = settle, lockstep, idle_wait
         self.q_cmd: dict[str, Array] = {}
+        self.records = records
 
     def start(self, q_start: Array) -> int:
         self.q_cmd = {name: np.array(q) for name, q in self.plant.split(q_start).items()}
@@ -97,6 +101,9 @@ class _RigRun(TargetSource):
         if self.lockstep is not None and not self.lockstep.closed and self._idle():
             self.lockstep.wait(self.idle_wait)  # lockstep on a virtual clock: time waits for the input
         goals = {name: f.target_at(tick, t) for name, f in self.followers.items()}
+        own: dict[str, IKResult | None] = dict.fromkeys(goals)
+        if self.records is not None:
+            self.records.ik = own  # this tick's, filled in below
         if all(goal is HOLD for goal in goals.values()):
             return HOLD
         parts, targets, results = {}, [], []
@@ -106,7 +113,7 @@ class _RigRun(TargetSource):
                 tool = self.followers[name].tool
                 targets.append(np.zeros(3) if tool is None else tool)
                 continue
-            result = self.solvers[name].solve(goal.position, self.q_cmd[name], goal.rotation)
+            result = own[name] = self.solvers[name].solve(goal.position, self.q_cmd[name], goal.rotation)
             parts[name] = result.q
             targets.append(goal.position)
             results.append(result)
@@ -129,6 +136,44 @@ class _RigRun(TargetSource):
 
     def finished(self, tick: int) -> bool:
         return self.settle.finished(tick, all(f.finished(tick) for f in self.followers.values()))
+
+
+class RigTeleopRecords:
+    """Each arm's part of a rig teleop's tick records, for the rig's telemetry
+    (:class:`~retarget.rig.telemetry.RigTelemetry`): pass it to :func:`run_rig_teleop` (``records``), which notes
+    each arm's IK outcome every tick.  ``followers``: the run's, by arm name (their targets as they came in are the
+    tracking references, :meth:`trackers`)."""
+
+    def __init__(self, rig: Rig, followers: Mapping[str, Follower]):
+        self.rig, self.plant, self.followers = rig, RigPlant.of(rig), dict(followers)
+        #: each arm's IK of the latest tick (None: it held, no IK), set by the run
+        self.ik: dict[str, IKResult | None] = {}
+
+    def arm_record(self, record: TickRecord, name: str) -> TickRecord:
+        """Arm ``name``'s part of the rig's tick ``record`` (the latest): its target (base frame), goals and
+        read-back, and its own IK outcome."""
+        i = self.rig.names.index(name)
+        part = self.plant.slices[i]
+        present = None if record.q_present is None else record.q_present[part]
+        ik = self.ik.get(name)
+        return replace(
+            record,
+            target=record.target[3 * i : 3 * i + 3],
+            q_cmd=record.q_cmd[part],
+            q_present=present,
+            ik_error=0.0 if ik is None else float(ik.error),
+            ik_sweeps=0 if ik is None else int(ik.iterations),
+            ik_converged=True if ik is None else bool(ik.converged),
+        )
+
+    def trackers(self) -> dict[str, TickTracker]:
+        """Each arm's :class:`~retarget.control.tracking.TickTracker`: its commanded tool point against its target
+        as it came in (the follower's ``reference``; none before the first)."""
+
+        def reference(follower: Follower) -> Callable[[Any], Array | None]:
+            return lambda _record: follower.reference
+
+        return {a.name: TickTracker(a.arm, reference(self.followers[a.name])) for a in self.rig.arms}
 
 
 @dataclass(frozen=True)
@@ -181,20 +226,22 @@ class RigTeleopResult:
 
 def rig_followers(
     rig: Rig,
-    rig_input: RigInput,
+    sources: RigInput | Mapping[str, Source],
     *,
     clock: Clock,
     rate: float,
     smoothing: Callable[[], OneEuro] | None = None,
     **knobs: Any,
 ) -> dict[str, Follower]:
-    """One :class:`~retarget.teleop.follower.Follower` per arm of ``rig`` on its source of ``rig_input``, by arm
-    name, all with the same keyword knobs (``max_speed``, ``tolerance``, ``timeout``, ...; see Follower);
-    ``smoothing`` makes each arm's own One-Euro filter (None: no smoothing)."""
+    """One :class:`~retarget.teleop.follower.Follower` per arm of ``rig`` on its source (a :class:`RigInput`'s, or
+    arm name -> source, e.g. the keys' :class:`~retarget.cli.tui.RigKeys` sources), by arm name, all with the same
+    keyword knobs (``max_speed``, ``tolerance``, ``timeout``, ...; see Follower); ``smoothing`` makes each arm's own
+    One-Euro filter (None: no smoothing)."""
+    by_arm = sources.sources if isinstance(sources, RigInput) else sources
     return {
         a.name: Follower(
             a.arm,
-            rig_input.sources[a.name],
+            by_arm[a.name],
             clock=clock,
             rate=rate,
             smoothing=None if smoothing is None else smoothing(),
@@ -223,6 +270,7 @@ def run_rig_teleop(
     on_progress: Callable[[TickRecord], None] | None = None,
     stop: threading.Event | None = None,
     name: str = "teleop",
+    records: RigTeleopRecords | None = None,
 ) -> RigTeleopResult:
     """Run the tick loop on ``rig``'s plant with one :class:`~retarget.teleop.follower.Follower` per arm (by arm
     name, each on its arm's source of ``rig_input``) until every follower is finished and the servos settled (at
@@ -234,7 +282,8 @@ def run_rig_teleop(
     None: no collision check at all; ``clearance``: metres between the arms (default the rig's).  ``rig_input``: where
     the followers' targets come from (its message-level rejects go into the result); ``lockstep`` (a virtual clock):
     while no arm has anything to do, the loop waits up to ``idle_wait`` real seconds for its input, so virtual time
-    does not race ahead of a reader thread.  A ``BusError`` propagates with the summary so far.
+    does not race ahead of a reader thread.  ``records``: noted each arm's IK every tick (for the telemetry,
+    ``on_tick``).  A ``BusError`` propagates with the summary so far.
 
     >>> from retarget.control.clock import VirtualClock
     >>> from retarget.rig import RigGate, RigInput, load_rig
@@ -254,7 +303,7 @@ def run_rig_teleop(
         for a in rig.arms
     }
     run = _RigRun(plant, followers, solvers, settle=Settle(settle_time, config.rate),
-                  lockstep=rig_input if lockstep else None, idle_wait=idle_wait)  # fmt: skip
+                  lockstep=rig_input if lockstep else None, idle_wait=idle_wait, records=records)  # fmt: skip
     check = None
     if models is not None:
         own = dict(models)

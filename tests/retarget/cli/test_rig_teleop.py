@@ -1,11 +1,14 @@
-"""``retarget teleop --rig``: a two-arm stream on stdin, one shot, bad input, and a fault on one arm."""
+"""``retarget teleop --rig``: a two-arm stream on stdin, one shot, bad input, a fault on one arm, the rig's move to
+rest at the end and its telemetry."""
 
 from __future__ import annotations
 
+import csv
 import io
 import json
 import random
 import re
+import signal
 
 import numpy as np
 import pytest
@@ -14,7 +17,15 @@ import sim
 from retarget.cli import main
 from retarget.control.clock import VirtualClock
 from retarget.rig import load_rig
-from tests.helpers import garbage, goal_registers, servo_joint_angles, torques, wx250s_tool
+from tests.helpers import (
+    SignalAfterSyncWrites,
+    garbage,
+    goal_registers,
+    goal_writes,
+    servo_joint_angles,
+    torques,
+    wx250s_tool,
+)
 
 LINE = re.compile(
     r"^(left|right): target (\S+) (\S+) (\S+) m  reached (\S+) (\S+) (\S+) m \(world frame\)  residual (\S+) mm  "
@@ -140,7 +151,14 @@ def test_a_fault_on_one_arm_stops_both_through_the_shutdown_sequence(capsys, mon
         pytest.param(["--stdin", "--arm", "koch"], r"--arm: Expected no such option with --rig", id="arm"),
         pytest.param(["--stdin", "--rpy", "0,90,0"], r"--rpy", id="rpy"),
         pytest.param(["--stdin", "--frame", "world"], r"--frame: Expected no --frame with --rig", id="frame"),
-        pytest.param(["--stdin", "--shutdown", "rest"], r"--shutdown: Expected hold or off with --rig", id="rest"),
+        pytest.param(["--to", "left 0.3 0.35 0.2", "--fast", "--shutdown", "rest", "--keep-out",
+                      "sphere:0.15,0,0.15,0.08"],
+                     r"collision: Expected a collision-free move of the rig's arms to rest", id="rest-blocked"),
+        pytest.param(["--interactive", "--dry-run"], r"--interactive: --interactive needs a terminal",
+                     id="interactive-no-terminal"),
+        pytest.param(["--interactive", "--fast"], r"--fast: --interactive runs in real time", id="interactive-fast"),
+        pytest.param(["--stdin", "--json", "--telemetry", "-"], r"--telemetry: --telemetry - and --json",
+                     id="telemetry-json"),
         pytest.param(["--stdin", "--dry-run", "--fast"], r"--fast: --dry-run uses no bus", id="dry-fast"),
         pytest.param(["--stdin", "--port", "middle=sim://wx250s"], r"--port: Expected one of the rig's arms left",
                      id="port-arm"),
@@ -159,3 +177,74 @@ def test_bad_input_exits_2_with_one_line(capsys, args, match):
 def test_dry_run_needs_the_rig(capsys):
     assert main(["teleop", "--stdin", "--dry-run"]) == 2
     assert re.search(r"--dry-run: --dry-run goes with --rig", capsys.readouterr().err)
+
+
+# ------------------------------------------------------------------ the end: the move to rest, the telemetry
+
+
+def read_csv(path) -> list[dict[str, str]]:
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def assert_tracking_is_fk(rig, rows, targets):
+    """Each arm's ``tracking_mm`` (where it has a target): an independent FK of its ``_cmd_rad`` columns to its
+    target as sent (world frame)."""
+    for a in rig.arms:
+        p = f"{a.name}/"
+        tracked = [r for r in rows if r[f"{p}tracking_mm"] != ""]
+        assert len(tracked) >= len(rows) - 2, a.name  # from the first tick that had the target
+        for r in tracked:
+            q = np.array([float(r[f"{p}{j}_cmd_rad"]) for j in a.arm.joint_names])
+            expected = np.linalg.norm(world_tool(a, q) - targets[a.name]) * 1e3
+            assert float(r[f"{p}tracking_mm"]) == pytest.approx(expected, abs=2e-3), (a.name, r["tick"])
+
+
+def test_dry_run_telemetry_one_row_per_tick_each_arm_prefixed(capsys):
+    targets = {"left": (0.3, 0.35, 0.2), "right": (0.25, -0.3, 0.25)}
+    code, out, err = teleop(capsys, "--to", "left 0.3 0.35 0.2 right 0.25 -0.3 0.25", "--dry-run", "--telemetry", "-")
+    assert code == 0, err
+    *table, left, right = out.splitlines()  # the CSV, then each arm's result line (as one arm's teleop)
+    assert LINE.match(left).group(1) == "left" and LINE.match(right).group(1) == "right"
+    rows = list(csv.DictReader(table))
+    ticks = int(re.search(r"on rig wx250s-pair: (\d+) ticks", err).group(1))
+    assert len(rows) == ticks > 50 and list(rows[0])[10:13] == ["left/target_x_m", "left/target_y_m", "left/target_z_m"]
+    assert all(r["left/waist_present_rad"] == "" and r["right/wrist_rotate_present_rad"] == "" for r in rows)
+    assert_tracking_is_fk(load_rig("wx250s-pair"), rows, targets)
+    assert all(float(rows[-1][f"{n}/tracking_mm"]) < 5 for n in targets)  # both reached their own
+
+
+def test_a_fault_mid_run_keeps_the_telemetry_up_to_it(capsys, monkeypatch, rig_sims, tmp_path):
+    rig, sims, ports = rig_sims(hwerror=["4:overload@0.6"])  # the right elbow overloads 0.6 s in
+    path = tmp_path / "rig.csv"
+    stdin_lines(monkeypatch, [b"left 0.3 0.35 0.2 right 0.3 -0.35 0.2"])
+    code, out, err = teleop(capsys, "--stdin", "--fast", "--max-speed", "0.05", "--shutdown", "off", "--telemetry",
+                            str(path), *ports)  # fmt: skip
+    assert code == 4 and re.search(r"right: servo 4: hardware error: overload", err), err
+    rows = read_csv(path)
+    assert 40 < len(rows) and 0.4 < float(rows[-1]["time_s"]) <= 0.6  # 0.05 m/s: still moving at the fault
+    assert [int(r["tick"]) for r in rows] == list(range(len(rows)))
+    assert all(r["right/waist_present_rad"] != "" for r in rows)
+    assert_tracking_is_fk(rig, rows, {"left": (0.3, 0.35, 0.2), "right": (0.3, -0.35, 0.2)})
+    assert 50 < float(rows[-1]["left/tracking_mm"]) < float(rows[0]["left/tracking_mm"])  # on its way
+
+
+def test_sigterm_mid_run_then_both_arms_go_to_rest_together(capsys, rig_sims, tmp_path):
+    rig, sims, ports = rig_sims()
+    right = sims["right"]
+    right.log = SignalAfterSyncWrites(40, signal.SIGTERM, maxlen=right.log.maxlen)
+    path = tmp_path / "rig.csv"
+    code, out, err = teleop(capsys, "--to", "left 0.3 0.35 0.2 right 0.3 -0.35 0.2", "--fast", "--max-speed", "0.05",
+                            "--shutdown", "rest", "--json", "--telemetry", str(path), *ports)  # fmt: skip
+    assert code == 143, err
+    assert "stopping on SIGTERM" in err
+    summary = json.loads(out)
+    assert summary["interrupted"] is True
+    rows = read_csv(path)
+    assert len(rows) == summary["ticks"] and 20 < len(rows) < 80  # every tick that ran, flushed
+    assert_tracking_is_fk(rig, rows, {"left": (0.3, 0.35, 0.2), "right": (0.3, -0.35, 0.2)})
+    for a in rig.arms:  # the rig's move to rest played through the tick loop (many goals, not the driver's one)
+        assert len(goal_writes(sims[a.name])) - len(rows) > 20, a.name
+        np.testing.assert_allclose(servo_joint_angles(sims[a.name], a.arm), a.arm.rest, atol=0.06)
+        assert set(torques(sims[a.name]).values()) == {0}
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL

@@ -1,12 +1,16 @@
-"""The interactive mode's testable core: key -> target (Jog) and the newest-only key source."""
+"""The interactive mode's testable core: key -> target (Jog), the newest-only key source, and a rig's keys (RigKeys:
+Tab selects the arm the keys move, in the rig's world frame)."""
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
-from retarget.cli.tui import KEYS, MAX_STEP, MIN_STEP, Action, Jog, KeySource
+from retarget.cli.tui import KEYS, MAX_STEP, MIN_STEP, Action, Jog, KeySource, RigKeys
 from retarget.control.clock import VirtualClock
+from retarget.rig import Placement, RigGate, load_rig
 from retarget.teleop.gate import TargetBounds, TargetGate
 
 
@@ -104,3 +108,60 @@ def test_gripper_keys_set_the_gate_closure_and_never_move_the_target(arm, jog, k
         assert src.press(key) is Action.GRIPPER
     assert gate.gripper == pytest.approx(closure) and jog.gripper == pytest.approx(closure)
     assert src.drain() == [] and jog.message.startswith("gripper")
+
+
+# ------------------------------------------------------------------ a rig's keys
+
+
+def rig_keys(rig=None):
+    rig = rig or load_rig("wx250s-pair")
+    start = {a.name: a.placement.to_world([0.3, 0.0, 0.25]) for a in rig.arms}  # each in front of its base
+    return RigKeys.for_gate(RigGate.for_rig(rig, clock=VirtualClock(1.0)), start=start, home=start), start
+
+
+def test_tab_switches_the_arm_the_keys_move_and_the_other_stays():
+    keys, start = rig_keys()
+    assert keys.selected == "left"
+    for key in ("w", "w", "r"):
+        assert keys.press(key) is Action.MOVE
+    assert keys.press("TAB") is Action.SELECT and keys.selected == "right"
+    for key in ("a", "a", "a", "f"):
+        assert keys.press(key) is Action.MOVE
+    np.testing.assert_allclose(keys.jogs["left"].target, start["left"] + [0.02, 0, 0.01], atol=1e-12)
+    np.testing.assert_allclose(keys.jogs["right"].target, start["right"] + [0, 0.03, -0.01], atol=1e-12)
+    # what each follower gets: the newest target only, in its own base frame (the bases sit at y = +-0.3)
+    (left,) = keys.sources["left"].drain()
+    (right,) = keys.sources["right"].drain()
+    np.testing.assert_allclose(left.position, [0.32, 0, 0.26], atol=1e-12)
+    np.testing.assert_allclose(right.position, [0.3, 0.03, 0.24], atol=1e-12)
+    assert keys.press("TAB") is Action.SELECT and keys.selected == "left"  # around again
+    assert keys.press("BTAB") is Action.SELECT and keys.selected == "right"  # Shift-Tab: back
+
+
+def test_rig_keys_move_in_the_world_frame_of_a_turned_arm():
+    rig = load_rig("wx250s-pair")
+    right = replace(rig.arms[1], placement=Placement((0.6, -0.3, 0.0), (0.0, 0.0, np.pi)))  # facing backward
+    keys, start = rig_keys(replace(rig, arms=(rig.arms[0], right)))
+    keys.press("TAB")
+    keys.press("w")  # +x in the world: toward the right arm's base, its -x
+    np.testing.assert_allclose(keys.jogs["right"].target, start["right"] + [0.01, 0, 0], atol=1e-12)
+    (target,) = keys.sources["right"].drain()
+    np.testing.assert_allclose(target.position, [0.29, 0, 0.25], atol=1e-12)
+
+
+def test_rig_keys_share_the_step_block_in_each_arms_bounds_and_quit_every_arm():
+    keys, start = rig_keys()
+    assert keys.press("+") is Action.STEP
+    keys.press("TAB")
+    assert keys.jogs["right"].step == pytest.approx(0.02)
+    keys.press("+")
+    keys.press("+")
+    keys.press("+")  # 0.16 m, capped at MAX_STEP
+    assert {name: jog.step for name, jog in keys.jogs.items()} == {"left": MAX_STEP, "right": MAX_STEP}
+    for _ in range(2):
+        keys.press("f")  # 0.25 -> 0.15 -> 0.05 in the world (the bases are on the table: the same z)
+    assert keys.press("f") is Action.BLOCKED and keys.message == "right: blocked: out_of_box"
+    np.testing.assert_allclose(keys.jogs["right"].target, start["right"] + [0, 0, -0.2], atol=1e-12)
+    assert keys.press("c") is Action.NONE and keys.sources["right"].gate.gripper is None  # no gripper on a rig
+    assert keys.press("q") is Action.QUIT
+    assert all(source.closed for source in keys.sources.values())
