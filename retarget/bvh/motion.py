@@ -27,6 +27,7 @@ Example::
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -183,6 +184,8 @@ class Motion:
         self.frame_time = float(frame_time)
         self.path = path
         self._cached_pose: Pose | None = None
+        #: joint positions of a few joints and their ancestors (:meth:`joint_positions`): (joints, positions)
+        self._cached_chains: list[tuple[list[int], np.ndarray]] = []
         self._cached_lengths: np.ndarray | None = None
         self._cached_height: float | None = None
 
@@ -331,6 +334,50 @@ class Motion:
         """
         return self._pose().positions
 
+    def joint_positions(self, indices: Sequence[int]) -> np.ndarray:
+        """``(n_frames, len(indices), 3)`` float64 global positions of the joints ``indices``, file units, BVH world
+        frame: the same values as those columns of :meth:`positions`.  Before the whole FK has run, only these
+        joints and their ancestors go through it (an arm chain is ~8 of a full-body skeleton's 20-60 joints), and
+        that is cached; read-only.
+
+        >>> from retarget.bvh.parse import DEMO_CLIP, load_bvh
+        >>> motion = load_bvh(DEMO_CLIP)
+        >>> arm = [motion.joint_index(name) for name in ("RightArm", "RightForeArm", "RightHand")]
+        >>> bool((motion.joint_positions(arm) == motion.positions()[:, arm]).all())
+        True
+        """
+        wanted = [int(i) for i in indices]
+        if any(not 0 <= i < self.n_joints for i in wanted):
+            raise ValueError(f"Expected joint indices in 0..{self.n_joints - 1}, got {wanted}")
+        if self._cached_pose is not None:
+            return _readonly(self._cached_pose.positions[:, wanted])
+        for joints, positions in self._cached_chains:
+            column = {j: k for k, j in enumerate(joints)}
+            if all(i in column for i in wanted):
+                return _readonly(positions[:, [column[i] for i in wanted]])
+        joints = self._with_ancestors(wanted)
+        column = {j: k for k, j in enumerate(joints)}
+        parents = [column[int(self.parents[j])] if self.parents[j] >= 0 else -1 for j in joints]
+        positions = forward_kinematics(
+            np.array(parents, dtype=np.intp),
+            self.offsets[joints],
+            [self.layout[j].names for j in joints],
+            [self.layout[j].first_column for j in joints],
+            self.channels,
+            end_sites=False,
+        ).positions
+        self._cached_chains.append((joints, _readonly(positions)))
+        return _readonly(positions[:, [column[i] for i in wanted]])
+
+    def _with_ancestors(self, indices: Sequence[int]) -> list[int]:
+        """``indices`` and every ancestor of them, in file order (parents first)."""
+        found: set[int] = set()
+        for j in indices:
+            while j >= 0 and j not in found:
+                found.add(j)
+                j = int(self.parents[j])
+        return sorted(found)
+
     def global_transforms(self) -> tuple[np.ndarray, np.ndarray]:
         """``(rotations (n_frames, n_joints, 3, 3), positions (n_frames, n_joints, 3))``: joint frame -> world."""
         pose = self._pose(rotations=True)
@@ -429,16 +476,14 @@ class Motion:
             raise BvhError(search.error, path=self.path)
         if found.method == "structure":
             log.info("%s arm found by structure: %s", side, " > ".join(found.names))
-        pos = self.positions()
         points = np.empty((self.n_frames, 3, 3))
-        points[:, 0] = pos[:, found.indices[0]]
-        points[:, 1] = pos[:, found.indices[1]]
         rest = self.rest_positions()
         if found.wrist_is_end_site:
+            points[:, :2] = self.joint_positions(found.indices[:2])
             points[:, 2] = self.end_site_positions()[:, found.indices[2]]
             rest_wrist = self.rest_end_site_positions()[found.indices[2]]
         else:
-            points[:, 2] = pos[:, found.indices[2]]
+            points[:] = self.joint_positions(found.indices)
             rest_wrist = rest[found.indices[2]]
         chain = ArmChain(
             side=found.side,

@@ -107,14 +107,13 @@ def clip_body_frames(motion: Motion, chain: ArmChain, *, up: Axis = Axis.PY) -> 
     >>> body.frames.shape, body.count(FROM_SHOULDERS), body.torso
     ((630, 3, 3), 630, None)
     """
-    positions = motion.positions()
     root = int(np.flatnonzero(np.asarray(motion.parents) < 0)[0])
-    hips = positions[:, root]
+    hips = motion.joint_positions([root])[:, 0]
     other, why = _other_shoulder(motion, chain)
     shoulders = _shoulder_frames(hips, chain, other, motion.n_frames)
     if other is not None and shoulders.ok.all():
         return BodyFrames(shoulders.frames, np.full(motion.n_frames, FROM_SHOULDERS, dtype=np.int8))
-    spine = _spine_of(motion, positions, root, shoulders.joints, up)
+    spine = _spine_of(motion, root, shoulders.joints, up)
     frames, spine_ok, carried = _spine_fallback(motion, chain, hips, spine, shoulders)
     ok = shoulders.ok
     usable = ok | spine_ok
@@ -175,10 +174,10 @@ class _Spine:
     axis: np.ndarray  #: ``(3,)`` the spine's direction in its frame (rest pose: root to it, else the BVH up axis)
 
 
-def _spine_of(motion: Motion, positions: np.ndarray, root: int, shoulders: list[int], up: Axis) -> _Spine:
+def _spine_of(motion: Motion, root: int, shoulders: list[int], up: Axis) -> _Spine:
     """The torso joint carrying the ``shoulders`` joints, its path over the clip and the spine's direction."""
     t = torso_joint(np.asarray(motion.parents), shoulders)
-    rotations, _ = motion.global_transforms()
+    rotations, positions = motion.global_transforms()
     rest = motion.rest_positions()
     axis = rest[t] - rest[root]
     if not np.linalg.norm(axis) > 0:  # the shoulders hang from the root
