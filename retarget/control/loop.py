@@ -196,9 +196,13 @@ def _require(ok: bool, key: str, message: str, value: object) -> None:
         raise ConfigError(message, key=key, value=value)
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class TickRecord:
-    """What one tick did.  Angles radians, target metres (base frame), times seconds."""
+    """What one tick did.  Angles radians, target metres (base frame), times seconds.
+
+    A record to read, not to change (every ``on_tick`` gets the same one).  It is not frozen because one is built
+    every tick, and a frozen dataclass of this many fields takes ~7x as long to build (~5 us against ~0.7 us: a
+    sixth of the loop's own time per tick of an offline export)."""
 
     tick: int  #: slot index since the start (skipped slots leave gaps)
     time: float  #: the slot's time since the run's start, loop clock

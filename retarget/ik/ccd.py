@@ -417,8 +417,8 @@ class CCDSolver:
             return result
         clear, m = guard.check(result.q)
         if clear:
-            return IKResult(result.q, result.error, result.iterations, result.converged, result.orientation_error,
-                            result.restarts, clearance=m)  # fmt: skip
+            result.clearance = m  # (a result of this call, not yet seen by anyone)
+            return result
         lower, upper = self._lo, self._hi
         seed = [lo if v < lo else hi if v > hi else v for v, lo, hi in zip(_joint_vector(q0, self.n), lower, upper,
                                                                            strict=True)]  # fmt: skip

@@ -10,7 +10,7 @@ import numpy as np
 __all__ = ["IKResult"]
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(eq=False, slots=True)
 class IKResult:
     """The outcome of one solve.
 
@@ -23,6 +23,9 @@ class IKResult:
     ``blocked`` when no clear pose reached the target (``q`` is then the nearest clear pose found, see
     :mod:`~retarget.ik.collide`), ``clearance`` metres, the pose's min clearance or a lower bound of it (``nan``
     without a model).
+
+    A result to read, not to change.  It is not frozen: a solve builds one per tick, and a frozen dataclass takes
+    ~5x as long to build (2 us against 0.4 us, a twentieth of a warm solve).
     """
 
     q: np.ndarray
