@@ -4,8 +4,9 @@ whole command.
 1. In process, per rig (``aloha``: two vx300s; ``wx250s-pair``): the stages of ``export --rig`` timed apart, as
    ``retarget.cli._rig_run.export_rig`` runs them, the CLI's default options (each arm's default collision model,
    100 Hz, the look-ahead plan, the arm-against-arm check on every tick): parse (``load_bvh``), map (collision
-   models + ``rig_targets``), IK (each arm's collision-aware pass, ``RigReplay.paths``), then the run (the plan,
-   the tick loop with every goal checked, the summary) writing the CSV as the CLI does (``write_trajectory``).
+   models + ``rig_targets``), IK (each arm's collision-aware pass, ``RigReplay.paths``), then the run (the plan and
+   its proof, the tick loop with every goal checked, the summary) writing the CSV as the CLI does
+   (``write_trajectory``).
    Real-time factor = clip seconds / wall seconds of all of it; target >= TARGET_FACTOR.  Then the same through
    ``retarget.cli.main(["export", ...])`` in process (what the command runs once Python and the imports are up).
 2. The whole command (``retarget export ...`` in a fresh interpreter: start-up, imports, argument parsing and all of

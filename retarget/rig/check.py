@@ -13,6 +13,11 @@ against each other, on the pose and on the joint-space segment to it.
   ``d0``, ``d1`` and the pair's travel ``M``: ``(d0 + d1 - M) / 2``; only when that falls short is the segment
   sampled, finely enough that no point moves more than half the clearance between samples.
 
+A path planned ahead (a clip's look-ahead plan) comes with its :class:`~retarget.rig.proof.RigProof`: every
+segment bounded before the run, each arm's own and the arms' against each other.  A tick whose move is a segment of
+it takes that segment's bounds where they keep the clearance and checks the rest as above; an arm's own check that
+a proof stood in for starts again from the pose held when it is next needed.
+
 A goal is allowed only when every check allows it.  A check that allowed its part of a goal another part blocked
 starts again from the pose held (its bookkeeping assumed the goal was written), so every bound stays sound.
 
@@ -31,6 +36,7 @@ import numpy.typing as npt
 from retarget.control.safety import GoalCheck
 from retarget.rig.clearance import RigClearance
 from retarget.rig.plant import RigPlant
+from retarget.rig.proof import RigProof, travel_spread
 
 Array = npt.NDArray[np.float64]
 #: a pose the arms' clearances were measured at: the pose, each pair's clearance, their least, each shape's levers,
@@ -46,7 +52,8 @@ __all__ = ["RigGoalCheck", "RigRoutes"]
 class RigGoalCheck:
     """Checks each goal of a rig's run (see the module docstring), from the pose ``q_start`` (rad, the plant's).
 
-    ``models``: each arm's own collision model, by arm name; ``between``: the arm-against-arm clearances.
+    ``models``: each arm's own collision model, by arm name; ``between``: the arm-against-arm clearances;
+    ``proof``: the bounds of the path planned ahead (:class:`~retarget.rig.proof.RigProof`), taken for its moves.
     :attr:`clearance` is the least clearance (metres) of the last motion allowed, or a lower bound of it.
 
     >>> from retarget.collision import CollisionModel
@@ -65,44 +72,81 @@ class RigGoalCheck:
         models: Mapping[str, CollisionModel],
         between: RigClearance,
         q_start: npt.NDArray[np.float64],
+        *,
+        proof: RigProof | None = None,
     ):
         self.plant, self.models, self.between = plant, dict(models), between
+        self.proof = proof  #: the planned path's bounds (None: none)
         self._parts = [(a.name, s) for a, s in zip(plant.rig.arms, plant.slices, strict=True)]
+        self._slices = dict(self._parts)
         q0 = np.asarray(q_start, dtype=np.float64)
         self._checks = {name: GoalCheck(self.models[name], q0[s]) for name, s in self._parts}
+        #: the arms whose check is behind the pose written (a proof stood in, or a goal it allowed was blocked): it
+        #: starts again from the pose held before its next use
+        self._behind: set[str] = set()
+        self._own_limit = {name: float(self.models[name].clearance) for name, _ in self._parts}
         self._limit = float(between.clearance)
         self._step = 0.5 * max(self._limit, 1e-3)  # no point moves more than this between two samples
         self._pairs = between.pair_shapes
         #: ``(n_shapes, n_joints)``: the second-order term of each shape's travel (see :meth:`_falls`), per rad^2
-        self._spread = _spread(between)
+        self._spread = travel_spread(between)
         i, j = self._pairs
         self._whole_spread = (self._spread[i].max(axis=0) + self._spread[j].max(axis=0)).tolist()
         #: the last pose whose arm-against-arm clearances were measured (the bounds' reference): the pose, each pair's
         #: clearance, their least, and each shape's levers there
         self._ref = self._measured(q0)
         self.clearance = min(self._ref[2], *(c.clearance for c in self._checks.values()))
+        #: per segment of the proof: whether its bounds keep every clearance, and their least (metres)
+        self._proven: list[bool] = []
+        self._proven_low: list[float] = []
+        if proof is not None and len(proof):
+            none = [-math.inf] * len(proof)
+            own = [(np.array(proof.arms.get(name, none)), self._own_limit[name]) for name, _ in self._parts]
+            apart = np.array(proof.apart)
+            self._proven = np.logical_and.reduce([low >= limit for low, limit in own] + [apart >= self._limit]).tolist()
+            self._proven_low = np.minimum.reduce([low for low, _ in own] + [apart]).tolist()
+        self._names = tuple(self._slices)
 
     def allows(self, q_from: Sequence[float], q_to: Sequence[float]) -> bool:
         """Whether the move ``q_from`` -> ``q_to`` (rad) keeps every clearance; sets :attr:`clearance` when it does."""
         a, b = list(q_from), list(q_to)
+        proof = self.proof
+        k = -1 if proof is None else proof.segment(a, b)
+        if k >= 0 and self._proven[k]:  # every bound of a planned move keeps its clearance: every check is behind
+            self._behind.update(self._names)
+            self.clearance = self._proven_low[k]
+            return True
         passed: list[str] = []
+        lows: list[float] = []
         for name, s in self._parts:
-            if not self._checks[name].allows(a[s], b[s]):
-                self._restart(passed, np.array(a))
-                return False
+            own = proof.arms.get(name) if proof is not None and k >= 0 else None
+            low = -math.inf if own is None else own[k]
+            if low >= self._own_limit[name]:  # proven: the arm's check is behind from here
+                self._behind.add(name)
+            else:
+                check = self._own_check(name, a)
+                if not check.allows(a[s], b[s]):
+                    self._behind.update(passed)
+                    return False
+                low = check.clearance
             passed.append(name)
-        apart = self._segment_apart(a, b)
+            lows.append(low)
+        apart = -math.inf if proof is None or k < 0 else proof.apart[k]
         if apart < self._limit:
-            self._restart(passed, np.array(a))
-            return False
-        self.clearance = min(apart, *(c.clearance for c in self._checks.values()))
+            apart = self._segment_apart(a, b)
+            if apart < self._limit:
+                self._behind.update(passed)
+                return False
+        self.clearance = min(apart, *lows)
         return True
 
-    def _restart(self, names: list[str], q_held: npt.NDArray[np.float64]) -> None:
-        """The checks of ``names`` start again from the pose held (they took the blocked goal as written)."""
-        for name, s in self._parts:
-            if name in names:
-                self._checks[name] = GoalCheck(self.models[name], q_held[s])
+    def _own_check(self, name: str, q_held: list[float]) -> GoalCheck:
+        """Arm ``name``'s own check, started again from the plant's pose ``q_held`` (the pose written) when it is
+        behind."""
+        if name in self._behind:
+            self._behind.discard(name)
+            self._checks[name] = GoalCheck(self.models[name], np.array(q_held[self._slices[name]]))
+        return self._checks[name]
 
     def _measured(self, q: Array) -> _Reference:
         """The reference of the plant's pose ``q``: its pairs' clearances, their least, its shapes' levers, and the
@@ -168,18 +212,6 @@ def _fall(whole: list[tuple[float, float, float]], q: Sequence[float]) -> float:
         dx = x - ref
         fall += lever * abs(dx) + spread * dx * dx
     return fall
-
-
-def _spread(between: RigClearance) -> Array:
-    """``(n_shapes, n_joints)`` per rad^2: ``spread[i, l] = (sum_{k>l} motion[i, k] + l motion[i, l]) / 4`` over the
-    joints of shape ``i``'s arm (``l``, ``k`` counted within it), so that ``1/2 sum_{j<k} motion[i, k] |x_j| |x_k|
-    <= spread[i] @ x^2`` (see :meth:`RigGoalCheck._falls`)."""
-    out = np.zeros_like(between.motion)
-    for joints in between.joint_slices:
-        motion = between.motion[:, joints]
-        after = np.cumsum(motion[:, ::-1], axis=1)[:, ::-1] - motion  # sum over k > l
-        out[:, joints] = 0.25 * (after + np.arange(motion.shape[1])[None, :] * motion)
-    return out
 
 
 class _Segment(NamedTuple):

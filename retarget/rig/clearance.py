@@ -128,15 +128,16 @@ class _Placer:
         return np.split(out, np.cumsum(self.sizes)[:-1], axis=1)
 
     def levers(self, frames: Array, ends: Array) -> Array:
-        """``(m, n)`` metres: each shape's greatest distance from the axis of each joint ``j`` of its arm that moves
-        it (0 for the others), of one pose's ``frames`` ``(n_arms, n + 1, 4, 4)`` and ends ``(m, 2, 3)``, world."""
-        R, origin = frames[:, 1:, :3, :3], frames[:, 1:, :3, 3]  # joint j's axis runs through frame j + 1's origin
-        axis = (R @ self._axes[..., None])[..., 0]  # (n_arms, n, 3) unit, world
-        d = ends[:, None, :, :] - origin[self._arm][:, :, None, :]  # (m, n, 2, 3)
-        along = np.einsum("mjek,mjk->mje", d, axis[self._arm])
-        square = np.einsum("mjek,mjek->mje", d, d) - along * along
+        """``(..., m, n)`` metres: each shape's greatest distance from the axis of each joint ``j`` of its arm that
+        moves it (0 for the others), of poses' ``frames`` ``(..., n_arms, n + 1, 4, 4)`` and ends ``(..., m, 2, 3)``,
+        world (one pose, or many along the leading axes)."""
+        R, origin = frames[..., 1:, :3, :3], frames[..., 1:, :3, 3]  # joint j's axis runs through frame j + 1's origin
+        axis = (R @ self._axes[..., None])[..., 0]  # (..., n_arms, n, 3) unit, world
+        d = ends[..., :, None, :, :] - origin[..., self._arm, :, None, :]  # (..., m, n, 2, 3)
+        along = np.einsum("...mjek,...mjk->...mje", d, axis[..., self._arm, :, :])
+        square = np.einsum("...mjek,...mjek->...mje", d, d) - along * along
         out: Array = np.sqrt(np.maximum(square, 0.0)).max(axis=-1)
-        out[~self._moves] = 0.0
+        out[..., ~self._moves] = 0.0
         return out
 
 
@@ -209,14 +210,16 @@ class RigClearance:
     def measure(self, poses: Mapping[str, npt.ArrayLike]) -> tuple[Array, Array]:
         """Of one pose per arm: every pair's clearance ``(n_pairs,)`` (as :meth:`distances`) and every shape's lever
         ``(n_shapes, n_rig_joints)`` metres: its greatest distance from each joint's axis (0 for a joint that does
-        not move it), joints in the rig's order (every arm's in turn, as :attr:`motion`'s columns)."""
-        Q, _ = self._poses(poses)
+        not move it), joints in the rig's order (every arm's in turn, as :attr:`motion`'s columns); of
+        ``(n_poses, n_joints)`` arrays, ``(n_poses, n_pairs)`` and ``(n_poses, n_shapes, n_rig_joints)``."""
+        Q, one = self._poses(poses)
         frames = self._placer.frames(Q)
         ends = np.concatenate(self._placer.ends(Q, frames), axis=1)
         rows, columns, fits = self._lever_at
-        levers = np.zeros(self.motion.shape)
-        levers[rows, columns] = self._placer.levers(frames[0], ends[0])[fits]
-        return self._pair_gaps(ends)[0], levers
+        levers = np.zeros((len(ends), *self.motion.shape))
+        levers[:, rows, columns] = self._placer.levers(frames, ends)[:, fits]
+        gaps = self._pair_gaps(ends)
+        return (gaps[0], levers[0]) if one else (gaps, levers)
 
     def _pair_gaps(self, ends: Array) -> Array:
         """``(n_poses, n_pairs)`` signed clearances of every arm's shapes' world ends ``(n_poses, m, 2, 3)``."""

@@ -8,11 +8,13 @@ A fault on any bus ends the run for every arm, and the caller's close runs every
 
 Before the run, IK solves each arm's targets for every slot of the clip window (:class:`ArmPath`): each arm's own
 collision-aware :class:`~retarget.ik.CCDSolver`, warm-started from its previous solution; that path is planned
-ahead within the limits (``look_ahead``, as one arm's clip is).  The ticks then steer to those poses
-(:class:`~retarget.control.source.JointGoal`); the loop's step limit and the rig check stay the last word before
-each write.  On a bus a lead-in first moves every arm from where it is to the clip's first
-poses (straight in joint space when that path is clear, else through the arms' homes or rests, else refused:
-:func:`~retarget.control.replay.plan_lead_in` with :class:`~retarget.rig.check.RigRoutes`).
+ahead within the limits (``look_ahead``, as one arm's clip is), and every planned move is bounded before the first
+tick (:class:`~retarget.rig.proof.RigProof`: each arm's own bounds from the notes of its IK pass, the arms apart from
+poses measured in batches).  The ticks then steer to those poses (:class:`~retarget.control.source.JointGoal`); the
+loop's step limit and the rig check stay the last word before each write (a planned move whose bounds keep every
+clearance is a look-up; any other move is checked).  On a bus a lead-in first moves every arm from where it is to
+the clip's first poses (straight in joint space when that path is clear, else through the arms' homes or rests,
+else refused: :func:`~retarget.control.replay.plan_lead_in` with :class:`~retarget.rig.check.RigRoutes`).
 
 Each tick's record is one for the rig (targets ``(3 n_arms,)`` metres, every arm's base frame in turn, joints the
 plant's); :meth:`RigReplay.arm_record` gives one arm's part of it, with that arm's IK outcome.
@@ -23,7 +25,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -32,7 +34,7 @@ import numpy.typing as npt
 from retarget.control.bus import Bus
 from retarget.control.clock import Clock, MonotonicClock
 from retarget.control.loop import LoopConfig, TickRecord, run_ticks
-from retarget.control.plan import plan_path, solve_path
+from retarget.control.plan import plan_path
 from retarget.control.replay import ControlLoop, LeadIn, plan_lead_in
 from retarget.control.safety import Route
 from retarget.control.source import JointGoal, TargetSource, TickGoal
@@ -40,10 +42,12 @@ from retarget.control.stats import TickStats
 from retarget.control.summary import ik_figures
 from retarget.control.tracking import Trajectory, at_velocity_limit, following
 from retarget.errors import BusError
+from retarget.ik.bound import State, shared_bound
 from retarget.rig.check import RigGoalCheck, RigRoutes
 from retarget.rig.clearance import RigClearance
 from retarget.rig.mapping import RigTargets
 from retarget.rig.plant import RigPlant
+from retarget.rig.proof import RigProof
 from retarget.rig.spec import Rig
 from retarget.rig.summary import RigSummary
 
@@ -60,7 +64,9 @@ Array = npt.NDArray[np.float64]
 @dataclass(frozen=True)
 class ArmPath:
     """One arm's IK over the slots of a pass: ``q`` ``(n_slots, n_joints)`` rad, ``targets`` ``(n_slots, 3)`` m
-    (base frame), ``error`` ``(n_slots,)`` m, ``sweeps``, ``converged`` and ``blocked`` ``(n_slots,)``."""
+    (base frame), ``error`` ``(n_slots,)`` m, ``sweeps``, ``converged`` and ``blocked`` ``(n_slots,)``; with a
+    collision-aware solver, the ``notes`` its collision bound made during the pass and per slot the ``index`` of the
+    last one after its solve (what :meth:`~retarget.ik.bound.ClearanceBound.prove` bounds a plan of the path from)."""
 
     q: Array
     targets: Array
@@ -68,19 +74,34 @@ class ArmPath:
     sweeps: npt.NDArray[np.int64]
     converged: npt.NDArray[np.bool_]
     blocked: npt.NDArray[np.bool_]
+    notes: tuple[State, ...] = ()
+    index: npt.NDArray[np.intp] = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
 
     @classmethod
     def solve(cls, loop: ControlLoop) -> ArmPath:
         """IK for every slot of ``loop``'s pass, warm-started from the previous solution (the first from
-        :meth:`~retarget.control.replay.ControlLoop.initial_pose`)."""
+        :meth:`~retarget.control.replay.ControlLoop.initial_pose`), each solve's notes recorded."""
         positions, _, _ = loop.sample(0, loop.n_slots)
-        results = solve_path(loop.solver, positions, None, loop.initial_pose())
-        out = np.array([r.q for r in results], dtype=np.float64)
-        error = np.array([r.error for r in results])
+        q = loop.initial_pose()
+        model = loop.config.collision
+        bound = None if model is None else shared_bound(model)
+        notes = [] if bound is None else bound.record()
+        solve, results, index = loop.solver.solve, [], []
+        try:
+            for target in positions:
+                result = solve(target, q, None)
+                results.append(result)
+                index.append(len(notes) - 1)
+                q = result.q
+        finally:
+            if bound is not None:
+                bound.record(False)
+        out = np.array([r.q for r in results], dtype=np.float64).reshape(len(results), loop.arm.n_joints)
+        error = np.array([r.error for r in results], dtype=np.float64)
         sweeps = np.array([r.iterations for r in results], dtype=np.int64)
         converged = np.array([r.converged for r in results], dtype=bool)
         blocked = np.array([r.blocked for r in results], dtype=bool)
-        return cls(out, positions, error, sweeps, converged, blocked)
+        return cls(out, positions, error, sweeps, converged, blocked, tuple(notes), np.array(index, dtype=np.intp))
 
 
 class RigReplay:
@@ -194,8 +215,8 @@ class RigReplay:
         if self.models is not None:
             models, between, plant = self.models, self.between, self.plant
 
-            def check(q_start: Array) -> RigGoalCheck:
-                return RigGoalCheck(plant, models, between, q_start)
+            def check(q_start: Array) -> RigGoalCheck:  # (made after source.start(): the plan's bounds are in)
+                return RigGoalCheck(plant, models, between, q_start, proof=source.proof)
 
         try:
             ticks = run_ticks(
@@ -229,7 +250,9 @@ class _RigSource(TargetSource):
     def __init__(self, replay: RigReplay, *, lead_in: bool):
         self.replay, self.with_lead_in = replay, lead_in
         self.n_slots, self.looping = replay.n_slots, replay.config.loop
+        self.first = replay.loops[replay.rig.names[0]]  #: the first arm's loop: the clip's times
         self.lead_in: LeadIn | Route | None = None
+        self.proof: RigProof | None = None  #: the plan's bounds (:meth:`start`; None: no plan, or no collision check)
         paths = replay.paths
         self.q = replay.plant.join({name: p.q for name, p in paths.items()})  # (n_slots, plant n_joints)
         self.targets = np.concatenate([paths[name].targets for name in replay.rig.names], axis=1)  # (n_slots, 3 n)
@@ -240,14 +263,17 @@ class _RigSource(TargetSource):
             n = self.n_slots if cfg.max_ticks is None else min(self.n_slots, cfg.max_ticks)
             plant = replay.plant
             self.q = self.q.copy()
+            start = self.q[0] if self.with_lead_in else np.clip(q_start, plant.lower, plant.upper)
             self.q[:n] = plan_path(
                 self.q[:n],
-                self.q[0] if self.with_lead_in else np.clip(q_start, plant.lower, plant.upper),
+                start,
                 lower=plant.lower,
                 upper=plant.upper,
                 max_step=plant.max_velocity * cfg.velocity_scale / cfg.rate,
                 max_accel=plant.max_acceleration / cfg.rate**2,
             )
+            if replay.models is not None:
+                self._prove(np.vstack([start[None], self.q[:n]]))
         if not self.with_lead_in:
             return 0
         speed = np.minimum(cfg.lead_in_speed, cfg.velocity_scale * replay.plant.max_velocity)
@@ -258,11 +284,25 @@ class _RigSource(TargetSource):
             self.lead_in = self.lead_in.truncated(cfg.max_ticks)
         return -self.lead_in.n_slots
 
+    def _prove(self, path: Array) -> None:
+        """Bound every planned move ``path[k] -> path[k + 1]`` ``(n + 1, plant n_joints)`` rad before the run
+        (:class:`~retarget.rig.proof.RigProof`): each arm's own, by its collision bound from the notes of its IK pass
+        (:meth:`~retarget.ik.bound.ClearanceBound.prove`), and the arms' against each other."""
+        replay = self.replay
+        models, paths = replay.models or {}, replay.paths
+        own = {}
+        for name, part in zip(replay.rig.names, replay.plant.slices, strict=True):
+            arm = paths[name]
+            if arm.notes and name in models:
+                starts, ends = path[:-1, part], path[1:, part]
+                own[name] = (part, shared_bound(models[name]).prove(starts, ends, arm.notes, arm.index[: len(ends)]))
+        self.proof = RigProof.prove(replay.between, path, own)
+
     def finished(self, tick: int) -> bool:
         return not self.looping and tick >= self.n_slots
 
     def clip_time(self, tick: int, t: float) -> float:
-        loop = self.replay.loops[self.replay.rig.names[0]]
+        loop = self.first
         if tick < 0:
             return loop.config.start
         return loop.clip_time(tick % self.n_slots if self.looping else tick)

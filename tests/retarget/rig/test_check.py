@@ -6,10 +6,12 @@ import numpy as np
 import pytest
 
 from retarget.collision import CollisionModel
+from retarget.ik.bound import shared_bound
 from retarget.rig import RigPlant, load_rig
 from retarget.rig.check import RigGoalCheck, _fall
 from retarget.rig.clearance import RigClearance
-from tests.helpers import sampled_min_clearance
+from retarget.rig.proof import RigProof
+from tests.helpers import brute_force_min_clearances, sampled_min_clearance
 
 
 @pytest.fixture(scope="module")
@@ -167,3 +169,64 @@ def test_every_allowed_move_keeps_the_clearance_along_its_whole_path(pair):
         else:
             blocked += 1
     assert allowed > 50 and blocked >= 3 and nearest < 0.04  # the walk moved, and kept coming near the other arm
+
+
+def proven_path(rig, plant, between, models, path):
+    """The proof of ``path`` as a replay makes it: each arm's own bounds from notes of every pose of it (as an IK
+    pass leaves them), and the arms apart."""
+    own = {}
+    for a, part in zip(rig.arms, plant.slices, strict=True):
+        model = models[a.name]
+        bound = shared_bound(model)
+        notes = bound.record()
+        index = []
+        for k, q in enumerate(path[:, part]):
+            bound.note(q, model.distances(q))
+            if k:
+                index.append(len(notes) - 1)
+        own[a.name] = (part, bound.prove(path[:-1, part], path[1:, part], notes, index))
+    return RigProof.prove(between, path, own)
+
+
+def test_a_proof_changes_no_decision_and_every_move_it_allows_is_clear(pair):
+    """Seeded property: a planned path (the arms drift into each other and apart, the left one down into the table
+    and up) proven ahead; a run along it (a few goals knocked off it, holding where a goal is blocked, back on the
+    path after) is allowed and blocked move for move as by the same check without the proof (its own models: no
+    shared bounds), and every move allowed keeps each arm off itself, the table and the other arm (brute force)."""
+    rig, plant, _, between = pair
+    rng = np.random.default_rng(23)
+    q = plant.home.copy()
+    path = [q]
+    for k in range(140):
+        step = rng.normal(0, 0.008, plant.n_joints)
+        drift = 0.008 if k < 80 else -0.014
+        step[0], step[6] = step[0] - drift, step[6] + drift
+        down = 1 if 30 <= k < 60 else -1 if 60 <= k < 90 else 0  # the left shoulder and elbow down, then up
+        step[1], step[2] = step[1] + down * 0.027, step[2] + down * 0.013
+        q = np.clip(q + step, plant.lower, plant.upper)
+        path.append(q)
+    path = np.array(path)
+    models = {a.name: CollisionModel.for_arm(a.arm) for a in rig.arms}
+    proof = proven_path(rig, plant, between, models, path)
+    plain = RigGoalCheck(plant, {a.name: CollisionModel.for_arm(a.arm) for a in rig.arms}, between, path[0])
+    check = RigGoalCheck(plant, models, between, path[0], proof=proof)
+    q, moves, blocked, found = path[0], [], 0, 0
+    for k in range(1, len(path)):
+        goal = path[k] + (rng.normal(0, 0.01, plant.n_joints) if rng.random() < 0.05 else 0.0)
+        found += np.array_equal(q, path[k - 1]) and np.array_equal(goal, path[k])  # a move of the path
+        allowed = check.allows(q.tolist(), goal.tolist())
+        assert allowed == plain.allows(q.tolist(), goal.tolist()), k
+        if allowed:
+            moves.append((q, goal))
+            q = goal
+        else:
+            blocked += 1
+    assert blocked >= 5 and len(moves) > 70 and found > 70
+    s = np.linspace(0.0, 1.0, 5)[:, None]
+    along = np.concatenate([a + s * (b - a) for a, b in moves])
+    for a, part in zip(rig.arms, plant.slices, strict=True):
+        assert brute_force_min_clearances(a.arm, along[:, part]).min() > 0
+    near = along[between.min_clearance(plant.split(along)) < 0.05]  # (the far poses are clear by centimetres)
+    assert len(near) >= 5
+    for x in near:
+        assert sampled_min_clearance(rig, plant.split(x), spacing=0.01) > 0

@@ -1,0 +1,230 @@
+"""A rig's planned path proven clear before it plays: every segment's bounds, each arm's own and the arms' against
+each other, so that the tick loop's check of a planned move is a look-up.
+
+A clip played with the look-ahead plan moves the rig along a path known before the first tick: tick ``k`` moves
+from pose ``k`` to pose ``k + 1`` of it (pose 0 the start).  :class:`RigProof` holds, per segment,
+
+- each arm's own bound (itself, its table and keep-outs): its collision bound's
+  :meth:`~retarget.ik.bound.ClearanceBound.prove` of the arm's part of the path, from the notes of its IK pass;
+- the arms' bound against each other (:func:`prove_apart`): poses measured in batches, coarse to fine, each pair's
+  clearance bounded along a segment by the same first- and second-order travel bounds as the tick check's
+  (:class:`~retarget.rig.check.RigGoalCheck`).
+
+:meth:`RigProof.segment` finds a move's segment: the next one, else the one ending at the move's end (the path
+rejoined after a blocked tick, or played again).  Every bound is a lower bound of the least clearance along its
+segment, less the slack a move matched to within :attr:`RigProof.EPS` may add; a segment whose bound falls short
+is checked at its tick as any other move.
+
+Arrays: poses ``(n + 1, n_joints)`` radians, the plant's vector (:class:`~retarget.rig.plant.RigPlant`); bounds
+``(n,)`` metres.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from operator import sub
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+
+from retarget.rig.clearance import RigClearance
+
+if TYPE_CHECKING:
+    from retarget.ik.bound import ProvenPath
+
+__all__ = ["RigProof", "prove_apart"]
+
+Array = npt.NDArray[np.float64]
+
+#: the levels of :func:`prove_apart`: each measures the poses every ``K`` ticks around the segments the one before
+#: left short (the last, 1: the segments' own ends); these measure the fewest poses of a few tried on the bundled
+#: rigs' clips (about one pose in six when the arms move fast and near each other)
+LEVELS = (24, 6, 2, 1)
+_BATCH = 512  #: poses per batch of :meth:`~retarget.rig.clearance.RigClearance.measure` (bounded memory)
+
+
+class RigProof:
+    """The bounds of a rig's planned path, segment by segment (see the module docstring): ``poses``
+    ``(n + 1, n_joints)`` rad, each arm's own ``arms[name]`` and the arms' ``apart`` ``(n,)`` metres (lower bounds
+    of the least clearance along each segment; ``-inf``: none).
+
+    >>> from retarget.rig import RigPlant, load_rig
+    >>> rig = load_rig("wx250s-pair")
+    >>> plant, between = RigPlant.of(rig), RigClearance(rig)
+    >>> path = plant.home + np.linspace(0.0, 0.1, 11)[:, None]  # ten steps of 0.01 rad in every joint
+    >>> proof = RigProof(path, {}, prove_apart(between, path), between)
+    >>> k = proof.segment(path[3].tolist(), path[4].tolist())
+    >>> k, between.clearance <= proof.apart[k] <= float(between.min_clearance(plant.split(path[4])))
+    (3, True)
+    >>> proof.segment(path[4].tolist(), path[3].tolist())  # not a segment of the path
+    -1
+    """
+
+    EPS = 1e-9  #: radians in all: how near a move's ends must be to its segment's
+
+    __slots__ = ("_poses", "_ends", "_next", "arms", "apart")
+
+    def __init__(self, poses: npt.ArrayLike, arms: Mapping[str, Sequence[float]], apart: npt.ArrayLike,
+                 between: RigClearance):  # fmt: skip
+        self._poses: list[list[float]] = np.asarray(poses, dtype=np.float64).tolist()
+        #: each end pose's first segment, for finding the path again
+        self._ends: dict[tuple[float, ...], int] = {}
+        for k, pose in enumerate(self._poses[1:]):
+            self._ends.setdefault(tuple(pose), k)
+        self._next = 0  #: the segment tried first
+        #: each arm's own bounds, by arm name (:meth:`~retarget.ik.bound.ProvenPath.find`'s: its slack taken off)
+        self.arms = {name: list(low) for name, low in arms.items()}
+        # a move within EPS of a segment at both ends is within EPS of it all along: no point of a shape moves more
+        # than its greatest motion per radian times that
+        margin = 2.0 * self.EPS * float(between.motion.max(initial=0.0))
+        self.apart: list[float] = (np.asarray(apart, dtype=np.float64) - margin).tolist()
+
+    def __len__(self) -> int:
+        return len(self._poses) - 1
+
+    def segment(self, q_from: Sequence[float], q_to: Sequence[float]) -> int:
+        """The segment the move ``q_from -> q_to`` (rad) is, to within :attr:`EPS` in all at each end: the next one
+        after the last found, else the first that ends at ``q_to`` exactly; -1 when none."""
+        poses = self._poses
+        for k in (self._next, self._ends.get(tuple(q_to), -1)):
+            if 0 <= k < len(poses) - 1 and _near(q_to, poses[k + 1]) and _near(q_from, poses[k]):
+                self._next = k + 1
+                return k
+        return -1
+
+    @classmethod
+    def prove(cls, between: RigClearance, path: npt.ArrayLike, arms: Mapping[str, tuple[slice, ProvenPath]]
+              ) -> RigProof:  # fmt: skip
+        """The proof of ``path`` ``(n + 1, n_joints)`` rad: the arms apart (:func:`prove_apart`) and each arm's own
+        bounds read from ``arms[name] = (its joints in the path, its ProvenPath of them)``."""
+        P = np.asarray(path, dtype=np.float64)
+        own = {name: _lows(proven, P[:-1, part], P[1:, part]) for name, (part, proven) in arms.items()}
+        return cls(P, own, prove_apart(between, P), between)
+
+
+def _lows(proven: ProvenPath, starts: Array, ends: Array) -> list[float]:
+    """Each segment's bound in ``proven`` (found in order, as the loop would; ``-inf`` for one it misses)."""
+    out = []
+    for a, b in zip(starts.tolist(), ends.tolist(), strict=True):
+        low = proven.find(a, b)
+        out.append(-math.inf if low is None else low)
+    return out
+
+
+def _near(a: Sequence[float], b: list[float]) -> bool:
+    """Whether ``a`` is ``b``, or within :attr:`RigProof.EPS` of it in all (False for a NaN or another length)."""
+    return list(a) == b or (len(a) == len(b) and sum(map(abs, map(sub, a, b))) <= RigProof.EPS)
+
+
+def prove_apart(between: RigClearance, path: npt.ArrayLike) -> Array:
+    """Lower bounds of the arms' least clearance along every segment of ``path`` ``(n + 1, n_joints)`` rad
+    (segment ``k``: pose ``k`` -> ``k + 1``): ``(n,)`` metres.
+
+    Level by level (:data:`LEVELS`: ``K`` = 24, 6, 2, 1) each segment not yet proven is bounded from the poses at
+    the multiples of ``K`` either side of it, measured (each pair's clearance, each shape's levers) a batch at a
+    time: from a measured pose no pair closes by more than the whole rig's fall (every pair's at once, that pose's
+    levers: :func:`~retarget.rig.check._fall`), a convex function of the move, so its bound along a segment is
+    least at an end.  After the last level (the segment's own ends) each pair of a segment still short is bounded
+    by ``(d0 + d1 - fall) / 2`` (:func:`pair_falls` from either end's levers).  A segment still short keeps its best
+    bound: its tick checks it."""
+    P = np.asarray(path, dtype=np.float64)
+    n = len(P) - 1
+    i, j = between.pair_shapes
+    if n <= 0 or not i.size:
+        return np.full(max(n, 0), math.inf)
+    spread = travel_spread(between)
+    whole_spread = spread[i].max(axis=0) + spread[j].max(axis=0)
+    at = _Measured(between, P)
+    low = np.full(n, -math.inf)
+    todo = np.arange(n)
+    for step in LEVELS:
+        r0 = todo // step * step
+        for r in (r0, np.minimum(r0 + step, n)):
+            at.measure(r)
+            w = at.whole[r]
+            fall = np.maximum(
+                whole_falls(w, whole_spread, P[todo] - P[r]), whole_falls(w, whole_spread, P[todo + 1] - P[r])
+            )
+            low[todo] = np.maximum(low[todo], at.least[r] - fall)
+        todo = todo[low[todo] < between.clearance]
+        if not todo.size:
+            return low
+    at.measure(np.concatenate([todo, todo + 1]))
+    low[todo] = np.maximum(low[todo], pairs_along(between, spread, at, todo, P[todo + 1] - P[todo]).min(axis=1))
+    return low
+
+
+def pairs_along(between: RigClearance, spread: Array, at: _Measured, starts: npt.NDArray[np.intp], dq: Array) -> Array:
+    """Each pair's least clearance along the moves ``dq`` ``(k, n_joints)`` rad from the measured poses ``starts``
+    to the measured poses after them, or a lower bound of it ``(k, n_pairs)`` metres: ``(d0 + d1 - fall) / 2`` of
+    its ends' clearances ``d0``, ``d1`` and how far it may close along the whole move, ``fall`` (:func:`pair_falls`
+    from either end's levers, each a bound of the pair's whole closing along the move): at any point of the move,
+    the closings since the start ``a`` and until the end ``b`` add up to at most ``fall``, so the pair keeps at
+    least ``max(d0 - a, d1 - b) >= (d0 + d1 - a - b) / 2`` (and the bound is at most the lower end's too)."""
+    d0, d1 = at.gaps[starts], at.gaps[starts + 1]
+    fall = np.minimum(pair_falls(between, spread, at.levers[starts], dq),
+                      pair_falls(between, spread, at.levers[starts + 1], dq))  # fmt: skip
+    out: Array = 0.5 * (d0 + d1 - fall)
+    return out
+
+
+class _Measured:
+    """The poses of a path measured so far: each one's pairs' clearances ``gaps`` ``(n_poses, n_pairs)`` and least
+    ``least``, its shapes' ``levers`` ``(n_poses, n_shapes, n_joints)`` and the whole rig's ``whole`` (per joint
+    the greatest lever of either side of any pair, summed) ``(n_poses, n_joints)``; rows not measured are unset."""
+
+    def __init__(self, between: RigClearance, poses: Array):
+        self.between, self.poses = between, poses
+        n = len(poses)
+        self.done = np.zeros(n, dtype=bool)
+        self.gaps = np.empty((n, between.pair_shapes[0].size))
+        self.least = np.empty(n)
+        self.levers = np.empty((n, *between.motion.shape))
+        self.whole = np.empty_like(poses)
+
+    def measure(self, rows: npt.NDArray[np.intp]) -> None:
+        """Measure the poses ``rows`` not measured yet, :data:`_BATCH` at a time."""
+        need = np.unique(rows)
+        need = need[~self.done[need]]
+        between = self.between
+        i, j = between.pair_shapes
+        for k in range(0, need.size, _BATCH):
+            some = need[k : k + _BATCH]
+            poses = self.poses[some]
+            arms = {a.name: poses[:, s] for a, s in zip(between.rig.arms, between.joint_slices, strict=True)}
+            gaps, levers = between.measure(arms)
+            self.gaps[some], self.least[some], self.levers[some] = gaps, gaps.min(axis=1), levers
+            self.whole[some] = levers[:, i].max(axis=1) + levers[:, j].max(axis=1)
+        self.done[need] = True
+
+
+def whole_falls(whole: Array, whole_spread: Array, dq: Array) -> Array:
+    """How far any pair may close ``(k,)`` (metres) along ``k`` straight moves ``dq`` ``(k, n_joints)`` (rad), each
+    from a pose whose whole-rig levers are ``whole`` ``(k, n_joints)`` (:class:`_Measured`): ``whole @ |dq| +
+    whole_spread @ dq^2``, :func:`~retarget.rig.check._fall`'s bound."""
+    out: Array = (whole * np.abs(dq) + whole_spread * dq * dq).sum(axis=1)
+    return out
+
+
+def pair_falls(between: RigClearance, spread: Array, levers: Array, dq: Array) -> Array:
+    """How far each pair may close ``(k, n_pairs)`` (metres) along ``k`` straight moves ``dq`` ``(k, n_joints)``
+    (rad), each from a pose whose shapes' levers are ``levers`` ``(k, n_shapes, n_joints)``: each shape's travel
+    ``levers @ |dq| + spread @ dq^2`` (:meth:`~retarget.rig.check.RigGoalCheck._falls`), the pair's two summed."""
+    travel = np.einsum("ksj,kj->ks", levers, np.abs(dq)) + (dq * dq) @ spread.T
+    i, j = between.pair_shapes
+    out: Array = travel[:, i] + travel[:, j]
+    return out
+
+
+def travel_spread(between: RigClearance) -> Array:
+    """``(n_shapes, n_joints)`` per rad^2: ``spread[i, l] = (sum_{k>l} motion[i, k] + l motion[i, l]) / 4`` over the
+    joints of shape ``i``'s arm (``l``, ``k`` counted within it), so that ``1/2 sum_{j<k} motion[i, k] |x_j| |x_k|
+    <= spread[i] @ x^2`` (see :meth:`~retarget.rig.check.RigGoalCheck._falls`)."""
+    out = np.zeros_like(between.motion)
+    for joints in between.joint_slices:
+        motion = between.motion[:, joints]
+        after = np.cumsum(motion[:, ::-1], axis=1)[:, ::-1] - motion  # sum over k > l
+        out[:, joints] = 0.25 * (after + np.arange(motion.shape[1])[None, :] * motion)
+    return out

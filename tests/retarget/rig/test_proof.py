@@ -1,0 +1,151 @@
+"""A rig's planned path proven before it plays: the arms' bounds segment by segment, and finding a move's segment."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from retarget.collision import CollisionModel
+from retarget.rig import RigPlant, load_rig
+from retarget.rig.check import RigGoalCheck, _fall
+from retarget.rig.clearance import RigClearance
+from retarget.rig.proof import RigProof, _Measured, pair_falls, pairs_along, prove_apart, travel_spread, whole_falls
+
+
+@pytest.fixture(scope="module")
+def pair():
+    rig = load_rig("wx250s-pair")
+    return rig, RigPlant.of(rig), RigClearance(rig)
+
+
+def near_the_other_arm(plant, between, rng):
+    """A seeded pose with the waists turned toward each other and the arms 2-15 cm apart."""
+    while True:
+        q = rng.uniform(plant.lower, plant.upper) * 0.6
+        q[0], q[6] = -np.pi / 2 + rng.normal(0, 0.3), np.pi / 2 + rng.normal(0, 0.3)
+        if 0.02 < float(between.min_clearance(plant.split(q))) < 0.15:
+            return q
+
+
+def sampled_least(plant, between, a, b, n=65):
+    """The least arm-against-arm clearance of ``n`` poses along ``a -> b`` (exact distances), metres."""
+    s = np.linspace(0.0, 1.0, n)[:, None]
+    return float(between.min_clearance(plant.split(a + s * (b - a))).min())
+
+
+def test_every_segment_keeps_its_bound_and_some_nearly_reach_it(pair):
+    """Seeded property of single moves near the other arm (one joint turned, a small move of all, a large one): the
+    proof's bound is at most the least exact clearance sampled along the move, and somewhere the bound's fall
+    from the start comes within 1.6x of the true one (a bound weakened by half fails)."""
+    rig, plant, between = pair
+    rng = np.random.default_rng(5)
+    reached = 0.0
+    for _ in range(40):
+        a = near_the_other_arm(plant, between, rng)
+        kind = rng.integers(3)
+        dq = rng.normal(0, 0.03 if kind == 1 else 0.15, plant.n_joints)
+        if kind == 0:
+            dq = np.zeros(plant.n_joints)
+            dq[rng.integers(plant.n_joints)] = rng.choice([-1, 1]) * rng.uniform(0.02, 0.3)
+        low = prove_apart(between, np.array([a, a + dq]))[0]
+        least = sampled_least(plant, between, a, a + dq)
+        assert low <= least + 1e-12
+        start = float(between.min_clearance(plant.split(a)))
+        if start - low > 1e-3:
+            reached = max(reached, (start - least) / (start - low))
+    assert reached > 0.6
+
+
+def test_each_pair_keeps_half_its_ends_clearances_less_half_its_fall(pair):
+    """Seeded property of the proof's last step, pair by pair: along a move between two measured poses each pair
+    keeps ``(d0 + d1 - fall) / 2`` (exact clearances densely sampled), and some pair's dip below its ends' mean
+    comes within 10 % of ``fall / 2`` (a step weakened by more fails)."""
+    rig, plant, between = pair
+    rng = np.random.default_rng(17)
+    spread = travel_spread(between)
+    reached = 0.0
+    for _ in range(24):
+        a = rng.uniform(plant.lower, plant.upper) * 0.7
+        b = a + rng.normal(0, rng.choice([0.05, 0.5]), plant.n_joints)
+        at = _Measured(between, np.array([a, b]))
+        at.measure(np.array([0, 1]))
+        low = pairs_along(between, spread, at, np.array([0]), (b - a)[None])[0]
+        s = np.linspace(0, 1, 129)[:, None]
+        least = between.distances(plant.split(a + s * (b - a))).min(axis=0)
+        assert np.all(least >= low - 1e-12)
+        fall = np.minimum(pair_falls(between, spread, at.levers[:1], (b - a)[None]),
+                          pair_falls(between, spread, at.levers[1:], (b - a)[None]))[0]  # fmt: skip
+        dip = 0.5 * (at.gaps[0] + at.gaps[1]) - least
+        big = fall > 1e-3
+        reached = max(reached, float((dip[big] / (0.5 * fall[big])).max(initial=0.0)))
+    assert reached > 0.9
+
+
+def test_a_walk_near_the_other_arm_is_proven_where_it_is_clear(pair):
+    """Seeded walk of small steps (the waists drifting toward each other, then away): every segment's bound keeps
+    below its sampled least clearance; most are proven clear, and a segment that is not clear never is."""
+    rig, plant, between = pair
+    rng = np.random.default_rng(9)
+    q = plant.home.copy()
+    path = [q]
+    for k in range(240):
+        step = rng.normal(0, 0.01, plant.n_joints)
+        drift = 0.006 if k < 120 else -0.01
+        step[0] -= drift
+        step[6] += drift
+        q = np.clip(q + step, plant.lower, plant.upper)
+        path.append(q)
+    path = np.array(path)
+    low = prove_apart(between, path)
+    s = np.linspace(0.0, 1.0, 17)[None, :, None]
+    along = (path[:-1, None] + s * (path[1:] - path[:-1])[:, None]).reshape(-1, plant.n_joints)
+    least = between.min_clearance(plant.split(along)).reshape(len(low), -1).min(axis=1)
+    assert np.all(low <= least + 1e-12)
+    proven = low >= between.clearance
+    assert proven.mean() > 0.7 and not proven[least < between.clearance].any()
+    assert (least < between.clearance).any()  # the walk went into the other arm
+
+
+def test_the_batch_bounds_are_the_tick_checks(pair):
+    """The proof measures and bounds as the tick check does, in batches: each pose's clearances, levers and the
+    whole rig's levers as :meth:`RigGoalCheck._measured`'s, the whole fall as ``_fall``'s and each pair's as
+    ``_falls``' (whose own tests hold them to the exact clearances)."""
+    rig, plant, between = pair
+    models = {a.name: CollisionModel.for_arm(a.arm) for a in rig.arms}
+    check = RigGoalCheck(plant, models, between, plant.home)
+    rng = np.random.default_rng(21)
+    poses = rng.uniform(plant.lower, plant.upper, (12, plant.n_joints)) * 0.7
+    dq = rng.normal(0, 0.2, poses.shape)
+    at = _Measured(between, poses)
+    at.measure(np.arange(len(poses)))
+    spread = travel_spread(between)
+    i, j = between.pair_shapes
+    falls = whole_falls(at.whole, spread[i].max(axis=0) + spread[j].max(axis=0), dq)
+    pairs = pair_falls(between, spread, at.levers, dq)
+    for k, q in enumerate(poses):
+        _, gaps, least, levers, whole = check._measured(q)
+        np.testing.assert_allclose(at.gaps[k], gaps, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(at.levers[k], levers, rtol=0, atol=1e-12)
+        assert at.least[k] == pytest.approx(least, abs=1e-12)
+        assert falls[k] == pytest.approx(_fall(whole, (q + dq[k]).tolist()), rel=1e-12)
+        np.testing.assert_allclose(pairs[k], check._falls(levers, dq[k][:, None])[:, 0], rtol=1e-12)
+
+
+def test_a_move_is_found_on_the_path_again_after_leaving_it(pair):
+    rig, plant, between = pair
+    path = plant.home + np.linspace(0.0, 0.2, 21)[:, None]
+    proof = RigProof(path, {"left": np.arange(20.0)}, np.full(20, 0.5), between)
+    segment = [proof.segment(path[k].tolist(), path[k + 1].tolist()) for k in range(5)]
+    assert segment == [0, 1, 2, 3, 4]
+    off = (path[6] + 0.003).tolist()
+    assert proof.segment(path[5].tolist(), off) == -1  # a blocked tick's brake: not the path
+    assert proof.segment(off, path[7].tolist()) == -1  # nor its way back
+    assert proof.segment(path[9].tolist(), path[10].tolist()) == 9  # the path again, found by its end
+    assert proof.segment(path[10].tolist(), (path[11] + 1e-11).tolist()) == 10  # within EPS of it
+    assert proof.segment(path[11].tolist(), (path[12] + 1e-6).tolist()) == -1
+    assert proof.segment(path[0].tolist(), path[1].tolist()) == 0  # played again
+    slack = 2 * RigProof.EPS * float(between.motion.max())
+    assert proof.apart[3] == pytest.approx(0.5 - slack, abs=1e-15) and proof.arms["left"][3] == 3.0
+    assert len(proof) == 20 and proof.segment([math.nan] * 12, path[1].tolist()) == -1
