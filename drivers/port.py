@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import importlib
 import logging
+import select
 import socket
 from typing import TYPE_CHECKING, Any
 
@@ -51,6 +52,8 @@ if TYPE_CHECKING:
         def setupPort(self, cflag_baud: int) -> bool: ...
         def setPacketTimeout(self, packet_length: int) -> None: ...
         def setPacketTimeoutMillis(self, msec: float) -> None: ...
+        def getTimeSinceStart(self) -> float: ...
+        def readPort(self, length: int) -> bytes: ...
 
         packet_timeout: float  #: ms this read waits (set by setPacketTimeout)
 
@@ -104,22 +107,33 @@ def _no_delay(ser: serial.SerialBase) -> None:
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
 
 
+def _file_descriptor(ser: serial.SerialBase) -> int | None:
+    """The port's file descriptor to wait on (a device or ``socket://``); None for a port without one."""
+    try:
+        fd = ser.fileno()  # io.RawIOBase's raises io.UnsupportedOperation (an OSError and a ValueError)
+    except (OSError, ValueError, AttributeError):
+        return None
+    return fd if isinstance(fd, int) else None
+
+
 _HEADER = b"\xff\xff\xfd\x00"  #: the start of every Protocol 2.0 packet
 
 
 class UrlPortHandler(PortHandler):
     """``dynamixel_sdk.PortHandler`` opened through ``serial.serial_for_url``; everything else is the SDK's.
 
-    Two additions, both on the SDK's own calls:
+    Three additions, all on the SDK's own calls:
 
     * ``clearPort`` (the SDK calls it before every instruction it sends) counts what it drops: bytes already
       waiting then are replies that came after their transaction's timeout, late by definition
       (:attr:`stale_packets`, :attr:`stale_bytes`);
     * ``setPacketTimeout`` also tells a port that models time (the simulator's ``sim://`` on a virtual clock)
-      how long this read waits, so a reply due later is not delivered to it, as on a real port.
+      how long this read waits, so a reply due later is not delivered to it, as on a real port;
+    * ``readPort`` waits for a port with a file descriptor to be readable instead of spinning (see it).
     """
 
     stale_packets = 0  #: late status packets dropped before an instruction (a partial one counts as one)
+    _fd: int | None = None  #: the open port's file descriptor, for readPort's wait; None: it has none
     stale_bytes = 0  #: the bytes they had
 
     def clearPort(self) -> None:  # noqa: N802 - the SDK's name
@@ -146,6 +160,25 @@ class UrlPortHandler(PortHandler):
         if window is not None:
             window(self.packet_timeout / 1000.0)
 
+    def readPort(self, length: int) -> bytes:  # noqa: N802 - the SDK's name
+        """The SDK's ``readPort``, but on a port with a file descriptor (a device path, ``socket://``) it first
+        waits for the port to be readable, at most until the packet timeout.
+
+        The SDK's ``rxPacket`` calls ``readPort`` in a loop until the packet is whole or the timeout passed, and the
+        port is opened with ``timeout=0``: while the reply is on the wire it spins, a full core of Python holding
+        the GIL (measured on a 2-core VM, ``bench/bench_rig.py``: 2.1 ms of CPU per 2.2 ms tick, 0.3 ms with the
+        wait).  ROBOTIS made the same change in the C++ SDK (DynamixelSDK#694: ``poll()`` in ``readPort``).  Bytes
+        already there are read at once; a timed-out read returns what it has, as before.  Ports without a file
+        descriptor (the in-process ``sim://``, whose reads model the wire themselves) are read as the SDK does.
+        """
+        ser: Any = self.ser
+        if self._fd is not None:
+            left = min(self.packet_timeout, self.packet_timeout - self.getTimeSinceStart())  # ms
+            if left > 0:
+                select.select([self._fd], [], [], left / 1000.0)
+        data: bytes = ser.read(length)
+        return data
+
     def setupPort(self, cflag_baud: int) -> bool:  # noqa: N802 - the SDK's name
         if self.is_open:
             self.closePort()
@@ -162,6 +195,7 @@ class UrlPortHandler(PortHandler):
         except (serial.SerialException, OSError, ValueError) as exc:
             raise BusError(f"cannot open port {self.port_name!r} at {self.baudrate} baud: {exc}") from exc
         _no_delay(self.ser)
+        self._fd = _file_descriptor(self.ser)
         self.is_open = True
         self.ser.reset_input_buffer()
         self.tx_time_per_byte = (1000.0 / self.baudrate) * 10.0
@@ -170,6 +204,7 @@ class UrlPortHandler(PortHandler):
     def closePort(self) -> None:  # noqa: N802 - the SDK's name
         if self.ser is not None:
             self.ser.close()
+        self._fd = None
         self.is_open = False
         self.is_using = False
 

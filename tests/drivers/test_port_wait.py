@@ -1,0 +1,80 @@
+"""``UrlPortHandler.readPort`` waits for a port with a file descriptor to be readable instead of spinning: the SDK's
+``rxPacket`` then reads the port a few times per packet, not thousands (the served simulator on a real clock, wire
+model on, at 57600 baud so a ping and its status take 4.2 ms on the wire)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+
+import pytest
+from dynamixel_sdk import COMM_RX_TIMEOUT, COMM_SUCCESS, PacketHandler
+
+import sim
+from drivers.port import UrlPortHandler, open_port
+from retarget.control.clock import MonotonicClock, VirtualClock
+from sim.server import PtyServer, SimServer, TcpServer
+from tests.helpers import needs_pty
+
+
+def _tcp(bus: sim.SimBus) -> tuple[SimServer, str]:
+    server = TcpServer(bus)
+    return server, server.url
+
+
+def _pty(bus: sim.SimBus) -> tuple[SimServer, str]:
+    server = PtyServer(bus)
+    return server, server.path
+
+
+@pytest.fixture(params=[pytest.param(_tcp, id="tcp"), pytest.param(_pty, id="pty", marks=[pytest.mark.pty, needs_pty])])
+def served(request: pytest.FixtureRequest) -> Iterator[UrlPortHandler]:
+    """A port on one servo (ID 1) at 57600 baud, served out of this thread on a real clock, wire model on (pyserial's
+    ``socket://`` sleeps 0.3 s when it closes: one test per transport)."""
+    make: Callable[[sim.SimBus], tuple[SimServer, str]] = request.param
+    bus = sim.SimBus.from_ids([1], clock=MonotonicClock(), baud=57600, faults=sim.Faults(wire=True))
+    server, where = make(bus)
+    with server:
+        port = open_port(where, 57600)
+        try:
+            yield port
+        finally:
+            port.closePort()
+
+
+def _count_reads(port: UrlPortHandler) -> list[int]:
+    """Spy on the port's ``read``: the returned list grows by one per call."""
+    calls: list[int] = []
+    ser = port.ser
+    assert ser is not None
+    read = ser.read
+
+    def counted(size: int = 1) -> bytes:
+        calls.append(size)
+        return read(size)
+
+    ser.read = counted  # type: ignore[method-assign]
+    return calls
+
+
+def test_a_reply_and_a_silence_are_waited_for_not_spun_on(served: UrlPortHandler) -> None:
+    calls = _count_reads(served)
+    model, result, error = PacketHandler(2.0).ping(served, 1)
+    assert (result, error) == (COMM_SUCCESS, 0) and model > 0
+    assert 1 <= len(calls) <= 4, calls  # the 11-byte head, then the rest (spinning: hundreds of calls)
+    calls.clear()
+    _, result, _ = PacketHandler(2.0).ping(served, 7)  # no servo 7: the SDK waits out its packet timeout
+    assert result == COMM_RX_TIMEOUT
+    assert 1 <= len(calls) <= 3, len(calls)  # spinning: thousands
+
+
+def test_an_in_process_port_has_no_descriptor_and_reads_as_the_sdk_does() -> None:
+    url = sim.attach(sim.SimBus.from_ids([1], clock=VirtualClock()))
+    try:
+        port = open_port(url, 1_000_000)
+        try:
+            assert port._fd is None
+            assert PacketHandler(2.0).ping(port, 1)[1] == COMM_SUCCESS
+        finally:
+            port.closePort()
+    finally:
+        sim.unregister(url)
