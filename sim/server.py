@@ -10,6 +10,18 @@
 Replies are written when the bus clock reaches their arrival time (Return Delay Time, the wire model and
 delay faults); a bus on a :class:`~retarget.clock.VirtualClock` jumps its clock instead of waiting.
 
+Real time: on a real clock with the wire model on (``retarget sim``'s default), each reply leaves when its last
+byte would be on a real wire at the servos' baud rate, counted from when the instruction reached the server.  On
+TCP (Linux) that is the kernel's receive time of the bytes (SO_TIMESTAMPNS), so an instruction that came while the
+simulator was still busy with the previous packet, or while the machine ran something else, is still timed from its
+arrival (the late work shows as late replies below); on a pty it is when the server read it.  To leave on time the
+serving thread sleeps in ``select`` until :data:`SPIN_S` before the reply is due and waits out the rest on the
+clock, and asks Linux for a 1 ns timer slack (the default 50 us makes every sleep end late; ``prctl``,
+best effort); measured on a 2-core VM: a 1.2 ms ``select`` overshoots by 90 us with the default slack, 40 us with
+1 ns.  :attr:`SimServer.pacing` counts the replies sent and those that left later than
+:data:`sim.pacing.LATE_S` after their time (the simulator did not keep up: a loaded machine, or servos whose Python took
+longer than the wire); ``retarget sim`` prints it when it stops.
+
 Lifecycle: ``with PtyServer(bus) as server: print(server.path)`` runs the loop in a thread until the block
 exits; or call :meth:`SimServer.serve_forever` in the foreground with a ``threading.Event`` to stop it.
 
@@ -40,6 +52,7 @@ import socket
 import struct
 import termios
 import threading
+import time
 import tty
 from collections import deque
 from collections.abc import Sequence
@@ -47,10 +60,12 @@ from typing import Protocol, Self
 
 from retarget.control.clock import Clock, VirtualClock
 from sim.bus import ScheduledReply, SimBus
+from sim.pacing import TIMESPEC, Pacing, fine_timer_slack, kernel_time, timestamps_on
 
 log = logging.getLogger(__name__)
 
 _POLL = 0.05  #: s between checks of the stop flag when idle
+SPIN_S = 100e-6  #: s before a reply is due that the serving thread stops sleeping and waits on the clock
 
 #: termios speed constants -> bps, for the rates Linux ptys carry
 _TERMIOS_BAUD = {
@@ -82,6 +97,8 @@ class SimServer:
 
     def __init__(self, bus: SimBus):
         self.bus = bus
+        self.pacing = Pacing()  #: replies sent on a real clock, and how late (module docstring)
+        self._fed_at = -math.inf  #: bus clock time of the last data fed to the bus (real clock)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._pending: deque[ScheduledReply] = deque()
@@ -104,6 +121,12 @@ class SimServer:
 
     def _line_baud(self) -> int | None:
         return None
+
+    def _arrival(self, clock: Clock) -> float:
+        """Bus clock time the data just received reached the server: now, unless the transport knows better (TCP
+        kernel timestamps); never before the last packet's."""
+        self._fed_at = max(self._fed_at, clock.now())
+        return self._fed_at
 
     def close(self) -> None:
         """Stop the loop (if running in a thread) and release the pty or socket.  Safe to call twice."""
@@ -136,6 +159,8 @@ class SimServer:
         stop = stop or self._stop
         clock = self.bus.clock
         virtual = isinstance(clock, VirtualClock)
+        if not virtual:
+            fine_timer_slack()
         while not stop.is_set() and not self._stop.is_set():
             fd = self._fd()
             timeout = self._timeout(clock, virtual)
@@ -155,12 +180,13 @@ class SimServer:
                 raise
 
     def _timeout(self, clock: Clock, virtual: bool) -> float:
-        """How long the next select may wait: until the next reply or hook action is due, at most _POLL."""
+        """How long the next select may wait: until the next hook action is due, or SPIN_S before the next reply
+        is (the rest is waited out in :meth:`_serve_once`); at most _POLL."""
         if virtual:
             return 0.0 if self._pending else _POLL
         due = min((hook.due() for hook in self.hooks), default=math.inf)
         if self._pending:
-            due = min(due, self._pending[0].due)
+            due = min(due, self._pending[0].due - SPIN_S)
         return min(_POLL, max(0.0, due - clock.now()))
 
     def _serve_once(self, readable: bool, clock: Clock, virtual: bool) -> None:
@@ -169,14 +195,20 @@ class SimServer:
             data = self._recv()
             if data:
                 self.bus.line_baud = self._line_baud()
-                replies = self.bus.feed(data)
+                replies = self.bus.feed(data, None if virtual else self._arrival(clock))
                 if replies:
                     self._pending = deque(sorted([*self._pending, *replies], key=lambda r: r.due))
         while self._pending:
+            due = self._pending[0].due
             if virtual:
-                clock.sleep_until(self._pending[0].due)
-            elif self._pending[0].due > clock.now():
-                break
+                clock.sleep_until(due)
+            else:
+                now = clock.now()
+                if due - now > SPIN_S:
+                    break
+                while now < due:  # the last SPIN_S: a sleep would end late (module docstring)
+                    now = clock.now()
+                self.pacing.note(now - due)
             self._send(self._pending.popleft().data)
 
 
@@ -268,6 +300,8 @@ class TcpServer(SimServer):
         self._listener.setblocking(False)
         self.address: tuple[str, int] = self._listener.getsockname()[:2]
         self._client: socket.socket | None = None
+        self._stamped = False  #: the client's socket has kernel receive timestamps on (Linux)
+        self._stamp: float | None = None  #: the last data's kernel receive time, s since the epoch
 
     @property
     def url(self) -> str:
@@ -281,11 +315,17 @@ class TcpServer(SimServer):
             with contextlib.suppress(BlockingIOError):
                 self._client, peer = self._listener.accept()
                 self._client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+                self._stamped = timestamps_on(self._client)
                 self.bus.reset()
                 log.info("client connected from %s:%d", *peer[:2])
             return b""
+        self._stamp = None
         try:
-            data = self._client.recv(4096)
+            if self._stamped:
+                data, ancillary, _, _ = self._client.recvmsg(4096, socket.CMSG_SPACE(TIMESPEC.size))
+                self._stamp = kernel_time(ancillary)
+            else:
+                data = self._client.recv(4096)
         except (ConnectionError, OSError):
             data = b""
         if not data:
@@ -294,6 +334,15 @@ class TcpServer(SimServer):
             self._client = None
             self._pending.clear()
         return data
+
+    def _arrival(self, clock: Clock) -> float:
+        """The kernel's receive time of the data just read (its last segment's), on the bus clock, when known."""
+        if self._stamp is not None:
+            age = time.time() - self._stamp  # CLOCK_REALTIME, as the kernel stamps; now on the bus clock:
+            if 0.0 <= age < 1.0:
+                self._fed_at = max(self._fed_at, clock.now() - age)
+                return self._fed_at
+        return super()._arrival(clock)
 
     def _send(self, data: bytes) -> None:
         if self._client is None:
