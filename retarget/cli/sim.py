@@ -51,7 +51,10 @@ Hands move servos whose torque is off (as a person turns a limp joint, e.g. for 
 are Present Position's (4096 per turn).  --hand ID:sweep:LO-HI:SECONDS, ID:to:PULSES:SECONDS, ID:release,
 each with an optional @START (seconds after start).  The control socket takes one command per line and
 answers one JSON line: hand ID sweep LO HI SECONDS | hand ID to PULSES SECONDS | release ID | status [ID...].
-Ctrl-C or SIGTERM stops the server cleanly (exit status 0).
+Ctrl-C or SIGTERM stops the server cleanly (exit status 0); with the wire model it then says how many replies
+left more than 0.5 ms after their wire time (a machine too busy to keep real time).  With --rig each arm's bus
+runs in its own process, as each arm of a real rig has its own wire; if one ends on its own, the others are
+stopped and the exit status is 1.
 """
 
 
@@ -338,5 +341,7 @@ def run(args: argparse.Namespace) -> int:
             server.close()
             if control is not None:
                 control.close()
+    if bus.faults.wire and server.pacing.replies:
+        print(f"retarget sim: {server.pacing.summary()}", file=sys.stderr)
     print("retarget sim: stopped", file=sys.stderr)
     return 0

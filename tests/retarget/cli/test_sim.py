@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import select
 import signal
 import subprocess
@@ -100,10 +101,13 @@ def _start(*argv: str) -> tuple[subprocess.Popen, str]:
     return proc, where
 
 
-def _stop(proc: subprocess.Popen) -> None:
+def _stop(proc: subprocess.Popen) -> str:
+    """SIGTERM: a clean stop (exit 0, "stopped"); returns what it printed on stderr."""
     proc.send_signal(signal.SIGTERM)
     assert proc.wait(timeout=10) == 0
-    assert "stopped" in proc.stderr.read()
+    err = proc.stderr.read()
+    assert "stopped" in err
+    return err
 
 
 def test_serves_on_loopback_tcp_until_sigterm():
@@ -115,7 +119,9 @@ def test_serves_on_loopback_tcp_until_sigterm():
         assert [p.id for p in PacketParser().feed(port.read(14))] == [2]
         port.close()
     finally:
-        _stop(proc)
+        err = _stop(proc)
+    # with the wire model (the default) it says how punctually the replies left: one reply here
+    assert re.search(r"retarget sim: 1 reply, [01] \([\d.]+ %\) later than 0\.5 ms after their wire time", err), err
 
 
 @pytest.mark.pty

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import os
 import re
 import select
 import signal
 import subprocess
 import sys
+import time
+from pathlib import Path
 
 import pytest
 import serial
@@ -33,6 +36,20 @@ def start(*argv: str) -> tuple[subprocess.Popen, dict[str, str]]:
     return proc, lines
 
 
+def arm_processes(pid: int, n: int) -> dict[str, int]:
+    """The ``n`` serving processes of the ``retarget sim --rig`` process ``pid``: ``sim-NAME`` (their name) -> pid."""
+    children = Path(f"/proc/{pid}/task/{pid}/children")
+    if not children.exists():
+        pytest.skip("needs Linux's /proc/PID/task/PID/children")
+    for _ in range(200):  # they are started right after the NAME=WHERE lines
+        pids = [int(p) for p in children.read_text().split()]
+        names = {Path(f"/proc/{p}/comm").read_text().strip(): p for p in pids}
+        if len(names) == n and all(name.startswith("sim-") for name in names):
+            return names
+        time.sleep(0.05)
+    pytest.fail(f"expected {n} processes named sim-NAME under {pid}, got {names}")
+
+
 def request(port: serial.Serial, packet: bytes, reply_length: int) -> list:
     port.write(packet)
     return PacketParser().feed(port.read(reply_length))
@@ -53,10 +70,33 @@ def test_each_arm_of_a_rig_has_its_own_bus_on_its_own_port():
         assert request(right, read, 12)[0].params == b"\x00\x00"  # no error, torque off
         left.close()
         right.close()
+        arms = arm_processes(proc.pid, 2)
     finally:
         proc.send_signal(signal.SIGTERM)
         assert proc.wait(timeout=10) == 0
         assert "stopped" in proc.stderr.read()
+    assert set(arms) == {"sim-left", "sim-right"}  # each arm served by its own process, gone with the command
+    assert not any(
+        Path(f"/proc/{pid}").exists() and "sim-" in Path(f"/proc/{pid}/comm").read_text() for pid in arms.values()
+    )
+
+
+def test_when_one_arms_server_dies_the_rig_stops_with_status_1_and_one_line_naming_it():
+    proc, _ = start("--rig", "wx250s-pair", "--tcp", "127.0.0.1:0", "--no-wire")
+    try:
+        arms = arm_processes(proc.pid, 2)
+        os.kill(arms["sim-right"], signal.SIGKILL)
+        assert proc.wait(timeout=10) == 1
+        err = proc.stderr.read().splitlines()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert err[-1] == "retarget sim: arm right: its server process ended (killed by signal 9); stopped the other arms"
+    assert (
+        not Path(f"/proc/{arms['sim-left']}").exists()
+        or "sim-" not in Path(f"/proc/{arms['sim-left']}/comm").read_text()
+    )
 
 
 @pytest.mark.parametrize(
