@@ -9,7 +9,7 @@ import retarget
 from retarget.control.clock import VirtualClock
 from retarget.control.limits import StepLimiter
 from retarget.control.loop import LoopConfig, TickRecord
-from retarget.control.plan import plan_path
+from retarget.control.plan import _follow, _steady, plan_path
 from retarget.control.replay import ControlLoop
 from retarget.mapping import Targets, Workspace
 
@@ -207,3 +207,35 @@ def test_a_plan_with_collisions_proves_its_moves_and_no_proof_claims_too_much() 
     check = GoalCheck(model, q_start)
     assert all(check.allows(a.tolist(), b.tolist()) for a, b in zip(starts, plan.q, strict=True))
     assert proven._next == len(t)  # every move was found proven: walked to its end
+
+
+def _smooth_with_jumps(rng: np.random.Generator, n: int) -> list[float]:
+    """A slow wave (the joint can stay on it) with a few steps in it that it cannot follow."""
+    t = np.arange(n)
+    path = 0.3 * np.sin(t / rng.uniform(20, 80)) + np.repeat(rng.uniform(-0.2, 0.2, n // 50 + 1), 50)[:n]
+    return path.tolist()
+
+
+@pytest.mark.parametrize("seed", range(6), ids=lambda s: f"seed{s}")
+def test_the_profile_copies_the_slots_it_stays_on_the_goal_exactly_as_it_would_step_them(seed: int) -> None:
+    """``_follow`` copies the goal where the joint stays on it (``_steady``); stepping every slot instead gives
+    the same floats, bit for bit, on waves with steps in them, near the joint limits and from an offset start."""
+    rng = np.random.default_rng(seed)
+    goal = _smooth_with_jumps(rng, int(rng.integers(100, 400)))
+    limits = (0.01, 0.002, -rng.uniform(0.3, 0.6), rng.uniform(0.3, 0.6))
+    for q0 in (goal[0], goal[0] + 0.05, limits[2]):
+        q0 = min(max(q0, limits[2]), limits[3])
+        assert _follow(goal, q0, limits) == _follow(goal, q0, limits, jump=False)
+
+
+def test_steady_marks_where_a_joint_on_the_goal_falls_off() -> None:
+    """On a wave within the limits every slot keeps a joint on it to the end; a step beyond the velocity limit at
+    slot 30 is where it falls off, from every slot before it, and slot 31 (back to the wave's step, beyond the
+    acceleration limit of the step before); a goal near a joint limit is never copied."""
+    wave = (0.2 * np.sin(np.arange(60) / 20.0)).tolist()
+    limits = (0.05, 0.01, -1.0, 1.0)
+    assert _steady(wave, limits) == [60] * 60
+    stepped = wave[:30] + [x + 0.1 for x in wave[30:]]
+    assert _steady(stepped, limits) == [30] * 30 + [31] + [60] * 29
+    near = [0.99] * 10  # within the braking run of the upper limit (0.05^2 / 0.02 + 0.05 + 0.01 = 0.185)
+    assert _steady(near, limits) == list(range(1, 11))
