@@ -105,7 +105,7 @@ class GoalCheck:
     def __init__(self, model: CollisionModel, q_start: npt.NDArray[np.float64]):
         self.model = model
         q0 = np.asarray(q_start, dtype=np.float64)
-        d = model.distances(q0)
+        d = model.pair_bounds(q0, float(model.clearance) + HORIZON)  # exact near the clearance, bounds farther off
         self.clearance = float(d.min()) if d.size else math.inf
         self.bound = shared_bound(model)
         self.bound.note(q0.tolist(), d)
