@@ -36,7 +36,7 @@ import numpy.typing as npt
 from retarget.control.safety import GoalCheck
 from retarget.rig.clearance import RigClearance
 from retarget.rig.plant import RigPlant
-from retarget.rig.proof import RigProof, travel_spread
+from retarget.rig.proof import RigProof, sample_step, travel_spread
 
 Array = npt.NDArray[np.float64]
 #: a pose the arms' clearances were measured at: the pose, each pair's clearance, their least, each shape's levers,
@@ -86,7 +86,7 @@ class RigGoalCheck:
         self._behind: set[str] = set()
         self._own_limit = {name: float(self.models[name].clearance) for name, _ in self._parts}
         self._limit = float(between.clearance)
-        self._step = 0.5 * max(self._limit, 1e-3)  # no point moves more than this between two samples
+        self._step = sample_step(self._limit)  # no pair closes by more than this between two samples
         self._pairs = between.pair_shapes
         #: ``(n_shapes, n_joints)``: the second-order term of each shape's travel (see :meth:`_falls`), per rad^2
         self._spread = travel_spread(between)

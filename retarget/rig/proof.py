@@ -8,12 +8,14 @@ from pose ``k`` to pose ``k + 1`` of it (pose 0 the start).  :class:`RigProof` h
   :meth:`~retarget.ik.bound.ClearanceBound.prove` of the arm's part of the path, from the notes of its IK pass;
 - the arms' bound against each other (:func:`prove_apart`): poses measured in batches, coarse to fine, each pair's
   clearance bounded along a segment by the same first- and second-order travel bounds as the tick check's
-  (:class:`~retarget.rig.check.RigGoalCheck`).
+  (:class:`~retarget.rig.check.RigGoalCheck`); a close pass those bounds cannot clear is sampled as the tick
+  check would sample it, all such segments' samples in a few batches.
 
 :meth:`RigProof.segment` finds a move's segment: the next one, else the one ending at the move's end (the path
 rejoined after a blocked tick, or played again).  Every bound is a lower bound of the least clearance along its
-segment, less the slack a move matched to within :attr:`RigProof.EPS` may add; a segment whose bound falls short
-is checked at its tick as any other move.
+segment (a sampled close pass: its least sample, the tick check's own figure for it), less the slack a move
+matched to within :attr:`RigProof.EPS` may add; a segment whose bound falls short is checked at its tick as any
+other move.
 
 Arrays: poses ``(n + 1, n_joints)`` radians, the plant's vector (:class:`~retarget.rig.plant.RigPlant`); bounds
 ``(n,)`` metres.
@@ -34,7 +36,7 @@ from retarget.rig.clearance import RigClearance
 if TYPE_CHECKING:
     from retarget.ik.bound import ProvenPath
 
-__all__ = ["RigProof", "prove_apart"]
+__all__ = ["RigProof", "prove_apart", "sample_step"]
 
 Array = npt.NDArray[np.float64]
 
@@ -101,7 +103,12 @@ class RigProof:
         bounds read from ``arms[name] = (its joints in the path, its ProvenPath of them)``."""
         P = np.asarray(path, dtype=np.float64)
         own = {name: _lows(proven, P[:-1, part], P[1:, part]) for name, (part, proven) in arms.items()}
-        return cls(P, own, prove_apart(between, P), between)
+        apart, at = _prove_apart(between, P)
+        short = np.flatnonzero(apart < between.clearance)
+        if at is not None and short.size:  # close passes: sampled now as their ticks would sample them
+            at.measure(np.concatenate([short, short + 1]))
+            apart[short] = np.maximum(apart[short], sampled_along(between, travel_spread(between), at, short))
+        return cls(P, own, apart, between)
 
 
 def _lows(proven: ProvenPath, starts: Array, ends: Array) -> list[float]:
@@ -128,12 +135,17 @@ def prove_apart(between: RigClearance, path: npt.ArrayLike) -> Array:
     levers: :func:`~retarget.rig.check._fall`), a convex function of the move, so its bound along a segment is
     least at an end.  After the last level (the segment's own ends) each pair of a segment still short is bounded
     by ``(d0 + d1 - fall) / 2`` (:func:`pair_falls` from either end's levers).  A segment still short keeps its best
-    bound: its tick checks it."""
+    bound (:meth:`RigProof.prove` samples it then)."""
+    return _prove_apart(between, path)[0]
+
+
+def _prove_apart(between: RigClearance, path: npt.ArrayLike) -> tuple[Array, _Measured | None]:
+    """:func:`prove_apart`, and the poses it measured (None: none)."""
     P = np.asarray(path, dtype=np.float64)
     n = len(P) - 1
     i, j = between.pair_shapes
     if n <= 0 or not i.size:
-        return np.full(max(n, 0), math.inf)
+        return np.full(max(n, 0), math.inf), None
     spread = travel_spread(between)
     whole_spread = spread[i].max(axis=0) + spread[j].max(axis=0)
     at = _Measured(between, P)
@@ -150,10 +162,38 @@ def prove_apart(between: RigClearance, path: npt.ArrayLike) -> Array:
             low[todo] = np.maximum(low[todo], at.least[r] - fall)
         todo = todo[low[todo] < between.clearance]
         if not todo.size:
-            return low
+            return low, at
     at.measure(np.concatenate([todo, todo + 1]))
     low[todo] = np.maximum(low[todo], pairs_along(between, spread, at, todo, P[todo + 1] - P[todo]).min(axis=1))
-    return low
+    return low, at
+
+
+def sampled_along(between: RigClearance, spread: Array, at: _Measured, starts: npt.NDArray[np.intp]) -> Array:
+    """Each segment ``starts[i] -> starts[i] + 1`` of the measured poses: its least arm-against-arm clearance over
+    poses sampled along it (ends included) as the tick check samples a move near contact
+    (:meth:`~retarget.rig.check.RigGoalCheck._segment_apart`, the same poses: so many that, by the end pose's levers,
+    no pair closes by more than :func:`sample_step` between two samples); ``(k,)`` metres.  Not a bound: the tick
+    check's own figure for such a move.  All the segments' samples are measured in batches of :data:`_BATCH`."""
+    P = at.poses
+    dq = P[starts + 1] - P[starts]
+    fall = pair_falls(between, spread, at.levers[starts + 1], dq).max(axis=1)
+    counts = np.maximum(2, np.ceil(fall / sample_step(between.clearance)).astype(np.intp) + 1)
+    segment = np.repeat(np.arange(starts.size), counts)
+    s = np.concatenate([np.linspace(0.0, 1.0, int(c)) for c in counts])
+    a = P[starts]
+    poses = a[segment] + s[:, None] * dq[segment]
+    least = np.empty(len(poses))
+    for k in range(0, len(poses), _BATCH):
+        some = poses[k : k + _BATCH]
+        arms = {a.name: some[:, part] for a, part in zip(between.rig.arms, between.joint_slices, strict=True)}
+        least[k : k + _BATCH] = between.distances(arms).min(axis=1)
+    out: Array = np.minimum.reduceat(least, np.concatenate(([0], np.cumsum(counts)[:-1])))
+    return out
+
+
+def sample_step(clearance: float) -> float:
+    """Metres: the most a pair may close between two samples of a move near contact (half the clearance)."""
+    return 0.5 * max(clearance, 1e-3)
 
 
 def pairs_along(between: RigClearance, spread: Array, at: _Measured, starts: npt.NDArray[np.intp], dq: Array) -> Array:

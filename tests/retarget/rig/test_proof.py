@@ -11,7 +11,17 @@ from retarget.collision import CollisionModel
 from retarget.rig import RigPlant, load_rig
 from retarget.rig.check import RigGoalCheck, _fall
 from retarget.rig.clearance import RigClearance
-from retarget.rig.proof import RigProof, _Measured, pair_falls, pairs_along, prove_apart, travel_spread, whole_falls
+from retarget.rig.proof import (
+    RigProof,
+    _Measured,
+    pair_falls,
+    pairs_along,
+    prove_apart,
+    sample_step,
+    sampled_along,
+    travel_spread,
+    whole_falls,
+)
 
 
 @pytest.fixture(scope="module")
@@ -149,3 +159,25 @@ def test_a_move_is_found_on_the_path_again_after_leaving_it(pair):
     slack = 2 * RigProof.EPS * float(between.motion.max())
     assert proof.apart[3] == pytest.approx(0.5 - slack, abs=1e-15) and proof.arms["left"][3] == 3.0
     assert len(proof) == 20 and proof.segment([math.nan] * 12, path[1].tolist()) == -1
+
+
+def test_a_close_pass_is_sampled_finely_enough_that_no_dip_between_samples_exceeds_the_step(pair):
+    """Seeded property of the proof's sampling of close passes (``sampled_along``, the tick check's way), on moves
+    that pass the other arm closest near their middle: its figure is at most a :func:`sample_step` above the least
+    of 257 exact poses along the move (a pair closes by no more than that between two samples), and not below it
+    by more than those dense samples may miss.  Measuring the ends alone misses the dip on some of these moves."""
+    rig, plant, between = pair
+    rng = np.random.default_rng(11)
+    spread, step = travel_spread(between), sample_step(between.clearance)
+    ends_miss = 0
+    for _ in range(12):
+        middle = near_the_other_arm(plant, between, rng)
+        half = rng.normal(0, 0.15, plant.n_joints)
+        a, b = middle - half, middle + half
+        at = _Measured(between, np.array([a, b]))
+        at.measure(np.array([0, 1]))
+        figure = float(sampled_along(between, spread, at, np.array([0]))[0])
+        dense = sampled_least(plant, between, a, b, n=257)
+        assert dense - step / 2 <= figure <= dense + step
+        ends_miss += float(at.least.min()) > dense + step
+    assert ends_miss >= 1
