@@ -389,6 +389,16 @@ class ProvenPath:
     def __len__(self) -> int:
         return len(self._low)
 
+    @property
+    def lows(self) -> list[float]:
+        """Every segment's bound in order (metres, the slack's margin taken off): what :meth:`find` gives for each
+        segment, found in order (a copy)."""
+        return list(self._low)
+
+    def matches(self, starts: np.ndarray, ends: np.ndarray) -> bool:
+        """Whether ``starts -> ends`` ``(n, n_joints)`` rad are its segments exactly (the same poses, in order)."""
+        return bool(starts.tolist() == self._starts and ends.tolist() == self._ends)
+
     def find(self, q_from: Sequence[float], q_to: Sequence[float]) -> float | None:
         """A lower bound of the min clearance (metres) of the move ``q_from -> q_to`` (rad) when it is the next
         segment (see the class docstring), else None."""
