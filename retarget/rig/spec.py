@@ -183,7 +183,8 @@ def load_rig(name_or_path: str | PathLike[str]) -> Rig:
     entries = data.get("arms")
     if not isinstance(entries, list) or len(entries) < 2:
         raise ConfigError("Expected two or more [[arms]] tables", path=path, key="arms")
-    arms = tuple(_rig_arm(entry, f"arms[{i}]", path) for i, entry in enumerate(entries))
+    loaded: dict[str | Path, Arm] = {}  # an arm file named twice (aloha's two vx300s) is read once: specs are frozen
+    arms = tuple(_rig_arm(entry, f"arms[{i}]", path, loaded) for i, entry in enumerate(entries))
     for field in ("name", "side"):
         values = [getattr(a, field) for a in arms]
         for i, v in enumerate(values):
@@ -194,13 +195,13 @@ def load_rig(name_or_path: str | PathLike[str]) -> Rig:
     return Rig(name, arms, path)
 
 
-def _rig_arm(entry: object, key: str, path: Path) -> RigArm:
+def _rig_arm(entry: object, key: str, path: Path, loaded: dict[str | Path, Arm]) -> RigArm:
     table = _table(entry, key, _ARM_KEYS, path, required=("name", "arm", "xyz", "side"))
     name = _string(table["name"], f"{key}.name", path)
     if not _NAME.match(name):
         raise ConfigError("Expected a name of letters, digits, _ and - (at most 32)", path=path, key=f"{key}.name",
                           value=name)  # fmt: skip
-    arm = _arm(_string(table["arm"], f"{key}.arm", path), f"{key}.arm", path)
+    arm = _arm(_string(table["arm"], f"{key}.arm", path), f"{key}.arm", path, loaded)
     xyz = _vector(table["xyz"], f"{key}.xyz", path, MAX_OFFSET)
     rpy = tuple(math.radians(v) for v in _vector(table.get("rpy", [0.0, 0.0, 0.0]), f"{key}.rpy", path, 360.0))
     port = _string(table.get("port", f"sim://{arm.name}"), f"{key}.port", path)
@@ -212,13 +213,16 @@ def _rig_arm(entry: object, key: str, path: Path) -> RigArm:
     return RigArm(name, arm, Placement(xyz, (rpy[0], rpy[1], rpy[2])), port, side)
 
 
-def _arm(text: str, key: str, path: Path) -> Arm:
-    """The arm by bundled name, or by a path relative to the rig file."""
+def _arm(text: str, key: str, path: Path, loaded: dict[str | Path, Arm]) -> Arm:
+    """The arm by bundled name, or by a path relative to the rig file (from ``loaded`` when read already)."""
     target: str | Path = text
     if "/" in text or "\\" in text or text.endswith((".toml", ".urdf", ".xml")):
         target = (path.parent / text).resolve()
+    if target in loaded:
+        return loaded[target]
     try:
-        return load_arm(target)
+        loaded[target] = load_arm(target)
+        return loaded[target]
     except ConfigError as exc:
         if exc.path is None:  # a bare name that is not bundled: say where in the rig
             raise ConfigError(exc.message, path=path, key=key, value=text) from exc
