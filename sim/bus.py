@@ -503,7 +503,8 @@ class SimBus:
         # faults per slot: a dropped slot ends the packet there; a corrupt slot flips its CRC byte
         end = cut
         offset = 8
-        for k, (_, _, data) in enumerate(slots):
+        faulty = not all(x.drop <= 0.0 and x.corrupt <= 0.0 for x in f)  # else no draws, nothing to cut or flip
+        for k, (_, _, data) in enumerate(slots if faulty else ()):
             slot_end = offset + len(data) + 4
             if self.faults.roll(f[k].drop):
                 end = offset

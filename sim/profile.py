@@ -20,10 +20,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 
-@dataclass(frozen=True)
-class Segment:
+class Segment(NamedTuple):
+    """One constant-acceleration piece of a :class:`Trajectory` (a tuple: built on every goal a servo takes)."""
+
     t0: float  #: start time, s
     p0: float  #: position at t0, pulses
     v0: float  #: velocity at t0, pulses/s

@@ -29,7 +29,12 @@ Rules it follows, from the e-Manual:
 * REBOOT resets the RAM area and clears hardware errors; FACTORY_RESET resets the table (0xFF all,
   0x01 all but ID, 0x02 all but ID and Baud Rate).
 
-Motion is integrated lazily: every read and write first brings the servo to ``clock.now()``.
+Motion is integrated lazily: every read and write first brings the servo to ``clock.now()`` (the bus also brings
+every servo to each packet's time).  The Present items' bytes are computed only when something reads the memory
+(a READ, a sync/bulk read, :meth:`SimServo.get`, :attr:`SimServo.memory`), for the state at the last update: the
+bytes an eager computation on every update would have stored, at a fraction of the cost (a bus transaction
+updates each servo several times and reads it at most once; ``tests/sim/test_replies_golden.py`` holds the replies
+to their values before this was lazy).
 """
 
 from __future__ import annotations
@@ -38,6 +43,7 @@ import logging
 import math
 import struct
 from collections import deque
+from collections.abc import Mapping
 
 from drivers.control_table import (
     ALERT_BIT,
@@ -55,6 +61,7 @@ from drivers.control_table import (
     HardwareError,
     Model,
     OperatingMode,
+    Register,
     StatusError,
     common_register,
 )
@@ -65,11 +72,11 @@ from sim.hand import HandPath, rate, smoothstep_path
 from sim.obstacle import OVERLOAD_AFTER_S, OVERLOAD_SHARE, Obstacle
 from sim.physics import PWM_FULL_SCALE, Motor
 from sim.profile import Trajectory, ramp_profile, rest, time_profile, velocity_profile
-from sim.servo_writes import WriteRules
+from sim.servo_writes import WriteRules, register_struct
 from sim.watchdog import WATCHDOG_ERROR, BusWatchdog
 
 log = logging.getLogger(__name__)
-_I16, _U16, _I32 = struct.Struct("<h"), struct.Struct("<H"), struct.Struct("<i")
+_I32 = struct.Struct("<i")
 
 PULSES_PER_S_PER_VELOCITY_UNIT = RPM_PER_VELOCITY_UNIT / 60.0 * PULSES_PER_REV  #: ~15.63
 PULSES_PER_S2_PER_ACCEL_UNIT = RPM2_PER_ACCEL_UNIT / 3600.0 * PULSES_PER_REV  #: ~244.1
@@ -106,6 +113,23 @@ _VELOCITY_TRAJECTORY = common_register("Velocity Trajectory").address
 _POSITION_TRAJECTORY = common_register("Position Trajectory").address
 _PRESENT_INPUT_VOLTAGE = common_register("Present Input Voltage").address
 _PRESENT_TEMPERATURE = common_register("Present Temperature").address
+#: every Present item, Realtime Tick (120) to Present Temperature (146), back to back: one pack per refresh
+_PRESENT_ITEMS = struct.Struct("<HBBhhiiiiHB")
+_PRESENT_ORDER = (
+    _REALTIME_TICK,
+    _MOVING,
+    _MOVING_STATUS,
+    _PRESENT_PWM,
+    _PRESENT_CURRENT,
+    _PRESENT_VELOCITY,
+    _PRESENT_POSITION,
+    _VELOCITY_TRAJECTORY,
+    _POSITION_TRAJECTORY,
+    _PRESENT_INPUT_VOLTAGE,
+    _PRESENT_TEMPERATURE,
+)
+if [a - _REALTIME_TICK for a in _PRESENT_ORDER] != [0, 2, 3, 4, 6, 8, 12, 16, 20, 24, 26]:  # pragma: no cover
+    raise ImportError(f"Expected the Present items back to back from address 120, got {_PRESENT_ORDER}")
 #: the goal item a Bus Watchdog trip zeroes, by Operating Mode
 _MODE_GOAL: dict[int, str] = {
     OperatingMode.VELOCITY: "Goal Velocity",
@@ -113,6 +137,27 @@ _MODE_GOAL: dict[int, str] = {
     OperatingMode.CURRENT: "Goal Current",
 }
 _REVERSE_BIT = int(DriveMode.REVERSE)  #: Drive Mode bit 0, as an int (an IntFlag operation costs a microsecond)
+_TIME_BASED_BIT = int(DriveMode.TIME_BASED_PROFILE)  #: Drive Mode bit 2
+_CURRENT_BASED_POSITION = int(OperatingMode.CURRENT_BASED_POSITION)
+_PWM_MODE = int(OperatingMode.PWM)
+
+#: how to read a register's value from memory: ``(register_struct, address)``
+_Reader = tuple[struct.Struct, int]
+_READERS: dict[int, tuple[Mapping[str, Register], dict[str, _Reader]]] = {}
+
+
+def _readers(regs: Mapping[str, Register]) -> dict[str, _Reader]:
+    """``{name: reader}`` of the registers ``regs`` (one table per model, built once)."""
+    hit = _READERS.get(id(regs))
+    if hit is not None and hit[0] is regs:
+        return hit[1]
+    table = {}
+    for name, reg in regs.items():
+        st = register_struct(reg)
+        if st is not None:
+            table[name] = (st, reg.address)
+    _READERS[id(regs)] = (regs, table)  # keeps regs alive, so its id is not reused
+    return table
 
 
 class SimServo(WriteRules):
@@ -143,10 +188,15 @@ class SimServo(WriteRules):
         self._voltage = self.model.nominal_voltage
         self._mem = self.model.defaults()
         self._regs = self.model.registers
+        self._readers = _readers(self._regs)
+        self._shapes = {}
         self._no_load = self.model.no_load_rpm / 60.0 * PULSES_PER_REV  #: pulses/s
         self._motor = Motor.of(self.model)
+        self._current_unit_ma = self.model.current_unit_ma
+        self._stall_current = self.model.stall_current
         self._hand: HandPath | None = None  #: what a hand holds the horn at while torque is off
-        self._fresh: float | None = None  #: clock time the Present items were last computed for
+        self._fresh: float | None = None  #: clock time the Present items were last brought up to
+        self._pending: float | None = None  #: clock time the Present items are due at, not yet computed (lazy)
         self._set("ID", dxl_id)
         if baud is not None:
             if baud not in BAUD_CODES:
@@ -298,8 +348,13 @@ class SimServo(WriteRules):
     # ------------------------------------------------------------------ raw register access (tests)
 
     def _get(self, name: str) -> int:
-        reg = self._regs[name]
-        return reg.decode(self._mem[reg.address : reg.end])
+        reader = self._readers.get(name)
+        if reader is None:
+            reg = self._regs[name]
+            return reg.decode(self._mem[reg.address : reg.end])
+        st, address = reader
+        value: int = st.unpack_from(self._mem, address)[0]
+        return value
 
     def _set(self, name: str, value: int) -> None:
         reg = self._regs[name]
@@ -309,6 +364,7 @@ class SimServo(WriteRules):
         """The value of register ``name`` now (motion brought up to date)."""
         self.model.register(name)
         self.update()
+        self._compute_pending()
         return self._get(name)
 
     def set(self, name: str, value: int) -> None:
@@ -385,17 +441,19 @@ class SimServo(WriteRules):
     def memory(self) -> bytes:
         """A copy of the whole control table, up to date."""
         self.update()
+        self._compute_pending()
         return bytes(self._mem)
 
     # ------------------------------------------------------------------ frames: actual <-> present
 
     @property
     def _reverse(self) -> bool:
-        return bool(self._mem[_DRIVE_MODE] & DriveMode.REVERSE)
+        return bool(self._mem[_DRIVE_MODE] & _REVERSE_BIT)
 
     def _homing(self) -> int:
         """The Homing Offset in effect (an invalid one is ignored in position mode: :mod:`sim.rules`)."""
-        return rules.effective_homing_offset(_I32.unpack_from(self._mem, _HOMING_OFFSET)[0], self._mode())
+        offset: int = _I32.unpack_from(self._mem, _HOMING_OFFSET)[0]
+        return rules.effective_homing_offset(offset, self._mem[_OPERATING_MODE]) if offset else 0
 
     def _present_from_actual(self, actual: float) -> float:
         return (PULSES_PER_REV - actual if self._reverse else actual) + self._homing()
@@ -411,7 +469,7 @@ class SimServo(WriteRules):
 
     def _vmax(self) -> float:
         """Pulses/s cap: Velocity Limit and the no-load speed."""
-        no_load = self.model.no_load_rpm / 60.0 * PULSES_PER_REV
+        no_load = self._no_load
         limit = self._get("Velocity Limit") * PULSES_PER_S_PER_VELOCITY_UNIT
         return min(no_load, limit) if limit > 0 else no_load
 
@@ -421,13 +479,13 @@ class SimServo(WriteRules):
         goal = self._actual_from_present(self._get("Goal Position"))
         vmax = self._vmax()
         pv, pa = self._get("Profile Velocity"), self._get("Profile Acceleration")
-        if self._mem[_DRIVE_MODE] & DriveMode.TIME_BASED_PROFILE:
+        if self._mem[_DRIVE_MODE] & _TIME_BASED_BIT:
             self._trajectory = time_profile(now, p, goal, pv / 1000.0, pa / 1000.0, vmax)
         else:
             if pv > 0:
                 vmax = min(vmax, pv * PULSES_PER_S_PER_VELOCITY_UNIT)
             accel = pa * PULSES_PER_S2_PER_ACCEL_UNIT if pa > 0 else math.inf
-            if self._mode() == OperatingMode.CURRENT_BASED_POSITION:
+            if self._mem[_OPERATING_MODE] == _CURRENT_BASED_POSITION:
                 cap = self._motor.accel_cap(self._get("Goal Current"), self._get("Current Limit"))
                 if cap <= 0:  # no current allowed: no torque to move with
                     self._trajectory = rest(p)
@@ -487,8 +545,25 @@ class SimServo(WriteRules):
             self._state = self._hand_state(self._hand, self._t)
 
     def update(self, now: float | None = None) -> None:
-        """Bring motion, faults, the Bus Watchdog and every Present item up to ``now`` (default ``clock.now()``)."""
+        """Bring motion, faults, the Bus Watchdog and every Present item up to ``now`` (default ``clock.now()``).
+
+        The Present items' bytes are computed when something reads them (:meth:`_compute_pending`), from the state
+        as it stands at ``now``: the same bytes, without the cost on the many updates nothing reads after.
+        """
         now = max(self.clock.now() if now is None else float(now), self._t)
+        mem = self._mem
+        if self._scheduled_errors or (mem[_TORQUE_ENABLE] and mem[_BUS_WATCHDOG]):
+            self._run_due_events(now)
+        if now == self._fresh:
+            return  # nothing moved or changed since the last refresh
+        self._advance(now)
+        if self._indirect_used:
+            self._refresh_present(now)
+        else:  # _refresh_present's lazy branch, inline: the bus updates every servo on every packet
+            self._fresh = self._pending = now
+
+    def _run_due_events(self, now: float) -> None:
+        """Raise the hardware errors and trip the Bus Watchdog due by ``now``, in time order, advancing to each."""
         while True:
             due_error = self._scheduled_errors[0][0] if self._scheduled_errors else math.inf
             due_watchdog = self._watchdog.deadline(
@@ -503,10 +578,6 @@ class SimServo(WriteRules):
             else:
                 self._advance(due_watchdog)
                 self._watchdog_trip()
-        if now == self._fresh:
-            return  # nothing moved or changed since the last refresh
-        self._advance(now)
-        self._refresh_present(now)
 
     def _watchdog_trip(self) -> None:
         """Bus Watchdog timed out: stop at once where it is and hold; the item reads -1 (:mod:`sim.watchdog`)."""
@@ -561,6 +632,28 @@ class SimServo(WriteRules):
             self._raise_hardware_error(HardwareError.OVERLOAD)
 
     def _refresh_present(self, now: float) -> None:
+        """The Present items are due at ``now`` (the state as it stands): computed when next read, at once when
+        Indirect Data may mirror them.
+
+        Between this call and the next read nothing the computation uses changes without a new call or ``_fresh``
+        reset to None (which makes the read's :meth:`update` call it again), so the bytes are the ones an
+        immediate computation would have stored.
+        """
+        self._fresh = now
+        if self._indirect_used:
+            self._pending = None
+            self._compute_present(now)
+        else:
+            self._pending = now
+
+    def _compute_pending(self) -> None:
+        """Compute the Present items now if they are due (before anything reads the memory)."""
+        if self._pending is not None:
+            at, self._pending = self._pending, None
+            self._compute_present(at)
+
+    def _compute_present(self, now: float) -> None:
+        """Store the Present items, Realtime Tick to Present Temperature, for the state at clock time ``now``."""
         mem = self._mem
         p, v, a = self._state
         torque = mem[_TORQUE_ENABLE]
@@ -569,38 +662,44 @@ class SimServo(WriteRules):
         moving_profile = bool(torque) and not self._trajectory.done(now)
         velocity_units = round(sign * v / PULSES_PER_S_PER_VELOCITY_UNIT)
         position = max(-(2**31), min(2**31 - 1, round(present)))
-        _I32.pack_into(mem, _PRESENT_VELOCITY, velocity_units)
-        _I32.pack_into(mem, _PRESENT_POSITION, position)
-        _I32.pack_into(mem, _VELOCITY_TRAJECTORY, velocity_units)
-        _I32.pack_into(mem, _POSITION_TRAJECTORY, position)
         threshold = _I32.unpack_from(mem, _MOVING_THRESHOLD)[0]
-        mem[_MOVING] = 1 if moving_profile or abs(velocity_units) > threshold else 0
+        moving = 1 if moving_profile or abs(velocity_units) > threshold else 0
         goal = _I32.unpack_from(mem, _GOAL_POSITION)[0]
         in_position = not moving_profile and abs(goal - present) <= max(threshold, 1)
-        mem[_MOVING_STATUS] = (
+        moving_status = (
             (1 if in_position and torque else 0)
             | (2 if moving_profile else 0)
             | ((self._trajectory.shape & 3) << 4 if moving_profile else 0)
         )
-        _U16.pack_into(mem, _REALTIME_TICK, int((now - self._t_origin) * 1000.0) % 32768)
         load = (self._push or self._motor.load_share(v, a)) * sign if torque else 0.0
-        if self.model.current_unit_ma is None:
-            _I16.pack_into(mem, _PRESENT_CURRENT, round(max(-1.0, min(1.0, load)) * 1000))
+        if self._current_unit_ma is None:
+            current = round(max(-1.0, min(1.0, load)) * 1000)
         else:
-            ma = load * self.model.stall_current * 1000.0
-            _I16.pack_into(mem, _PRESENT_CURRENT, max(-32768, min(32767, round(ma / self.model.current_unit_ma))))
-        _I16.pack_into(mem, _PRESENT_PWM, self._present_pwm(sign * v) if torque else 0)
-        _U16.pack_into(mem, _PRESENT_INPUT_VOLTAGE, max(0, min(65535, round(self.input_voltage / VOLT_PER_UNIT))))
-        mem[_PRESENT_TEMPERATURE] = max(0, min(255, round(self.ambient_temperature + 4.0 * abs(load))))
+            ma = load * self._stall_current * 1000.0
+            current = max(-32768, min(32767, round(ma / self._current_unit_ma)))
+        _PRESENT_ITEMS.pack_into(
+            mem,
+            _REALTIME_TICK,
+            int((now - self._t_origin) * 1000.0) % 32768,
+            moving,
+            moving_status,
+            self._present_pwm(sign * v) if torque else 0,
+            current,
+            velocity_units,
+            position,
+            velocity_units,  # Velocity Trajectory
+            position,  # Position Trajectory
+            max(0, min(65535, round(self._voltage / VOLT_PER_UNIT))),
+            max(0, min(255, round(self._ambient + 4.0 * abs(load)))),
+        )
         if self._indirect_used:
             for data_addr, target in rules.indirect_targets(self.model, mem).items():
                 if 0 <= target < len(mem):
                     mem[data_addr] = mem[target]
-        self._fresh = now
 
     def _present_pwm(self, v: float) -> int:
         """Present PWM: Goal PWM in PWM mode, else the duty the unloaded motor needs at velocity ``v`` (reported)."""
-        if self._mode() == OperatingMode.PWM:
+        if self._mem[_OPERATING_MODE] == _PWM_MODE:
             limit = self._get("PWM Limit")
             return max(-limit, min(limit, self._get("Goal PWM")))
         return round(v / self._no_load * PWM_FULL_SCALE)
@@ -614,6 +713,7 @@ class SimServo(WriteRules):
     def read(self, address: int, length: int) -> tuple[int, bytes]:
         """READ: ``(error, data)``; ``data`` is empty on error."""
         self.update()
+        self._compute_pending()
         if length <= 0:
             return StatusError.DATA_LENGTH, b""
         if address < 0 or address + length > len(self._mem):
@@ -697,6 +797,7 @@ class SimServo(WriteRules):
         if bytes(params) != CLEAR_MULTI_TURN:
             return StatusError.DATA_RANGE
         self.update()
+        self._compute_pending()
         if self._mem[_MOVING]:
             return StatusError.RESULT_FAIL
         p = self._state[0] % PULSES_PER_REV

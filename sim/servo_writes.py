@@ -8,8 +8,10 @@ the same bytes written to the targets, and refused as a whole when any target re
 
 from __future__ import annotations
 
+import struct
 from collections import deque
 from collections.abc import Callable
+from typing import NamedTuple
 
 from drivers.control_table import (
     DriveMode,
@@ -29,6 +31,38 @@ _DRIVE_MODE = common_register("Drive Mode").address
 _SHUTDOWN = common_register("Shutdown").address
 _HARDWARE_ERROR_STATUS = common_register("Hardware Error Status").address
 _BUS_WATCHDOG = common_register("Bus Watchdog").address
+_FORMATS = {(1, False): "<B", (1, True): "<b", (2, False): "<H", (2, True): "<h", (4, False): "<I", (4, True): "<i"}
+_SHAPES_MAX = 4096  #: (address, length) shapes a servo remembers
+
+
+class _Shape(NamedTuple):
+    """What a write of some bytes at some address covers, for one model (it never changes, so worked out once)."""
+
+    error: int  #: Access (nothing, or a read-only item) or Data Length (part of an item) whatever the state; else 0
+    regs: tuple[Register, ...]  #: the items covered, by address
+    eeprom: bool  #: whether any is in the EEPROM area (Access error while torque is on)
+    fields: tuple[tuple[str, struct.Struct | None, Register, int], ...]
+    #: per item: name, :func:`register_struct`, the item, its offset in the data
+
+
+def register_struct(reg: Register) -> struct.Struct | None:
+    """The struct that reads ``reg``'s bytes as ``Register.decode`` does (little-endian, its size and sign), without
+    the copies; None for a size it has no format for."""
+    fmt = _FORMATS.get((reg.size, reg.signed))
+    return None if fmt is None else struct.Struct(fmt)
+
+
+def _shape(model: Model, address: int, length: int) -> _Shape:
+    regs = tuple(model.covering(address, length))
+    if not regs:
+        return _Shape(StatusError.ACCESS, (), False, ())
+    end = address + length
+    if any(reg.address < address or reg.end > end for reg in regs):
+        return _Shape(StatusError.DATA_LENGTH, (), False, ())
+    if not all(reg.writable for reg in regs):
+        return _Shape(StatusError.ACCESS, (), False, ())
+    fields = tuple((reg.name, register_struct(reg), reg, reg.address - address) for reg in regs)
+    return _Shape(StatusError.NONE, regs, any(reg.eeprom for reg in regs), fields)
 
 
 class WriteRules:
@@ -43,6 +77,7 @@ class WriteRules:
     _state: tuple[float, float, float]
     _trajectory: Trajectory
     _watchdog: BusWatchdog
+    _shapes: dict[tuple[int, int], _Shape]  #: _shape by (address, length), this servo's model
 
     # provided by SimServo
     def _get(self, name: str) -> int:
@@ -88,21 +123,23 @@ class WriteRules:
     def _validate_items(self, address: int, data: bytes) -> tuple[int, list[Register]]:
         if not data:
             return StatusError.DATA_LENGTH, []
-        end = address + len(data)
-        if address < 0 or end > len(self._mem):
+        length = len(data)
+        if address < 0 or address + length > len(self._mem):
             return StatusError.ACCESS, []
-        regs = self.model.covering(address, len(data))
-        if not regs:
+        shape = self._shapes.get((address, length))
+        if shape is None:
+            shape = _shape(self.model, address, length)
+            if len(self._shapes) < _SHAPES_MAX:
+                self._shapes[address, length] = shape
+        if shape.error:
+            return shape.error, []
+        if shape.eeprom and self._mem[_TORQUE_ENABLE]:
             return StatusError.ACCESS, []
-        for reg in regs:
-            if reg.address < address or reg.end > end:
-                return StatusError.DATA_LENGTH, []
-        for reg in regs:
-            if not reg.writable:
-                return StatusError.ACCESS, []
-            if reg.eeprom and self._mem[_TORQUE_ENABLE]:
-                return StatusError.ACCESS, []
-        new = {r.name: r.decode(data[r.address - address : r.end - address]) for r in regs}
+        new = {
+            name: st.unpack_from(data, offset)[0] if st is not None else reg.decode(data[offset : offset + reg.size])
+            for name, st, reg, offset in shape.fields
+        }
+        regs = list(shape.regs)
         for reg in regs:
             error = self._check_value(reg, new)
             if error:
@@ -124,8 +161,7 @@ class WriteRules:
             return StatusError.DATA_RANGE  # the simulator speaks Protocol 2.0 only (sim.rules)
         if reg.name in rules.WATCHDOG_LOCKED and self._mem[_BUS_WATCHDOG] == WATCHDOG_ERROR:
             return StatusError.DATA_RANGE  # goals are read-only after a Bus Watchdog trip (sim.watchdog)
-        position_mode = value("Operating Mode") == OperatingMode.POSITION
-        if reg.limit is not None and (reg.name != "Goal Position" or position_mode):
+        if reg.limit is not None and (reg.name != "Goal Position" or value("Operating Mode") == OperatingMode.POSITION):
             lo_name, hi_name = reg.limit
             lo = -value(lo_name[1:]) if lo_name.startswith("-") else value(lo_name)
             if not lo <= v <= value(hi_name):
