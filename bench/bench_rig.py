@@ -19,16 +19,15 @@ inverse.  The target (issue 19): the rig's rate at least TARGET_RATIO of one bus
    vs 0.79).  Also: the share of the wire-limited rate (3.) reached; the fastest tenth of the inline ticks (the
    ticks the machine's other load disturbed least); the mean tick, the CPU per tick of the driver (this process)
    and of each arm's simulator process, and the cores they kept busy; how punctually each simulator sent its
-   replies (``SimServer.pacing``; late ones: the machine did not keep real time).  What limits 1. here: CPU.  The
-   simulated servos' Python takes ~0.9-1.1 ms per arm per tick, the driver ~0.25 ms per arm, so at the wire's
-   rate the rig keeps about 1.6 cores busy, in a burst of three runnable processes at each tick's start (the
-   driver and both simulators); on a shared 2-core machine the others' load then decides the ratio.  Measured on
-   one (3 runs, load average 1.4-3.3 from other work): one arm 86-88 % of the wire-limited rate, ratio 0.82-0.87
-   pipelined, 0.81-0.90 inline, late replies 2-24 %; the fastest tenth 0.89-0.90, the rest being the driver's own
-   work per arm, in series (the second arm's write leaves ~0.1 ms after the first's, its reply is decoded ~0.1 ms
-   after the first's).
+   replies (``SimServer.pacing``; late ones: the machine did not keep real time).  What limits 1. here: CPU and
+   wake-ups.  Each arm's simulator process takes ~0.6 ms per tick (~0.35 ms the servos' Python, the rest its server
+   loop and the last 100 us before each reply waited out on the clock), the driver ~0.25 ms per arm, so each tick
+   starts with three runnable processes on the 2-core machine.  Measured on a quiet one (load average 0.9): one arm
+   91 % of the wire-limited rate, ratio 0.89 inline and 0.82 pipelined, the fastest tenth 0.95; on a loaded one
+   (1.3-3.3) 0.80-0.88.  Without the last 100 us waited out on the clock (``sim.server.SPIN_S`` 0) both rates fall
+   (one arm 570 ticks/s instead of 618) and the ratio does not rise.
 2. In process, for comparison (``sim://``, the figure checked before): both simulated buses run in the driver's
-   own interpreter, so the simulated servos' Python (~1.1 ms per arm per tick, 4.) competes with the driver for the
+   own interpreter, so the simulated servos' Python (~0.37 ms per arm per tick, 4.) competes with the driver for the
    GIL and the rig's ticks pay for both arms' simulators in turn; that measures the simulator more than the bus,
    hence the check on 1.  Also the same ticks with each arm's calls in its own worker thread (the design RigBus
    does not use on its tick path: see its module docstring).
