@@ -72,6 +72,19 @@ def axis_angle_matrix(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
     return out
 
 
+def _axis_angle_entries(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """:func:`axis_angle_matrix` entry-major: rotations about unit ``axis`` ``(3,)`` by ``angle`` ``(n,)`` radians ->
+    ``(3, 3, n)`` (entry ``[r, c]`` of every rotation, contiguous)."""
+    x, y, z = (float(v) for v in axis)
+    c, s = np.cos(angle), np.sin(angle)
+    t = 1.0 - c
+    return np.array([
+        [t * x * x + c, t * x * y - s * z, t * x * z + s * y],
+        [t * x * y + s * z, t * y * y + c, t * y * z - s * x],
+        [t * x * z - s * y, t * y * z + s * x, t * z * z + c],
+    ])  # fmt: skip
+
+
 def transform(xyz: Sequence[float] | np.ndarray, rpy: Sequence[float] | np.ndarray) -> np.ndarray:
     """``(4, 4)`` homogeneous transform of a URDF origin (metres, radians)."""
     T = np.eye(4)
@@ -137,6 +150,32 @@ class Chain:
         """Tool poses ``(n, 4, 4)`` for joint angles ``Q`` ``(n, n_joints)`` radians; base frame, metres."""
         tool: np.ndarray = self.frames_batch(Q)[:, -1] @ self.tool
         return tool
+
+    def tool_points(self, Q: np.ndarray) -> np.ndarray:
+        """Tool points ``(n, 3)`` metres, base frame, of joint angles ``Q`` ``(n, n_joints)`` radians: the
+        translations of :meth:`fk_batch`, a third of its cost (each product over the whole batch at once, rotations
+        kept entry-major ``(3, 3, n)``, no 4x4 frames).
+
+        >>> from retarget.arm.load import load_arm
+        >>> arm = load_arm("wx250s")
+        >>> Q = np.stack([arm.home, arm.rest])
+        >>> bool(np.allclose(arm.chain.tool_points(Q), arm.chain.fk_batch(Q)[:, :3, 3], atol=1e-15))
+        True
+        """
+        Q = self._check(Q, "Q")
+        if Q.ndim != 2:
+            raise ValueError(f"Expected Q of shape (n, {self.n}), got {Q.shape}")
+        R = np.zeros((3, 3, Q.shape[0]))
+        R[0, 0] = R[1, 1] = R[2, 2] = 1.0
+        p = np.zeros((3, Q.shape[0]))
+        for i in range(self.n):
+            origin = self.origins[i]
+            p += np.einsum("rkn,k->rn", R, origin[:3, 3])
+            R = np.einsum("rkn,kc->rcn", R, origin[:3, :3])
+            R = np.einsum("rkn,kcn->rcn", R, _axis_angle_entries(self.axes[i], Q[:, i]))
+        p += np.einsum("rkn,k->rn", R, self.tool[:3, 3])
+        out: np.ndarray = p.T
+        return out
 
     def frames_batch(self, Q: np.ndarray) -> np.ndarray:
         """Every link frame ``(n, n_joints + 1, 4, 4)`` for joint angles ``Q`` ``(n, n_joints)`` radians: the base

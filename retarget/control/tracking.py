@@ -155,7 +155,7 @@ def following(arm: Arm, trajectory: Trajectory, *, rate: float, reference: Refer
     q = np.asarray(trajectory.q_cmd, dtype=np.float64)
     steered = np.asarray(trajectory.targets, dtype=np.float64)
     mapped = _references(trajectory, steered, reference)
-    tool = arm.chain.fk_batch(q)[:, :3, 3]
+    tool = arm.chain.tool_points(q)
     tracking = np.linalg.norm(tool - mapped, axis=1) * 1e3
     deviation = np.linalg.norm(steered - mapped, axis=1) * 1e3
     ok = np.isfinite(tracking)  # a tick without a target (a live run before the first) has no figure

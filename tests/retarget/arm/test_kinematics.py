@@ -71,6 +71,7 @@ def test_fk_paths_agree(name, seed):
     rng = np.random.default_rng(seed)
     Q = rng.uniform(arm.lower, arm.upper, (20, arm.n_joints))
     batch = fk_batch(arm, Q)
+    np.testing.assert_allclose(arm.chain.tool_points(Q), batch[:, :3, 3], atol=1e-12)
     solver = CCDSolver(arm)
     for q, Tb in zip(Q, batch, strict=True):
         T, _ = fk(arm, q)
@@ -127,8 +128,9 @@ def test_rpy_gimbal_lock():
         (lambda arm: arm.fk(np.zeros(5)), r"Expected q of shape \(\.\.\., 6\) for 6 joints, got \(5,\)"),
         (lambda arm: arm.fk(np.zeros((2, 6))), r"use fk_batch"),
         (lambda arm: fk_batch(arm, np.zeros(6)), r"Expected Q of shape \(n, 6\), got \(6,\)"),
+        (lambda arm: arm.chain.tool_points(np.zeros(6)), r"Expected Q of shape \(n, 6\), got \(6,\)"),
     ],
-    ids=["short-q", "batch-to-fk", "vector-to-batch"],
+    ids=["short-q", "batch-to-fk", "vector-to-batch", "vector-to-tool-points"],
 )
 def test_fk_shape_errors(call, message):
     with pytest.raises(ValueError, match=message):
