@@ -34,7 +34,7 @@ from retarget.control.profile import braking_run, stop_speed
 
 __all__ = ["StepLimiter"]
 
-_LEAD = 0.5  #: the IK seed leads the commanded pose by this fraction of its last step
+SEED_LEAD = 0.5  #: the IK seed leads the commanded pose by this fraction of its last step (:meth:`StepLimiter.seed`)
 
 
 class StepLimiter:
@@ -114,7 +114,7 @@ class StepLimiter:
         """The IK seed of a tick ``elapsed`` slots after the last: where the commanded pose is heading at half its
         current speed, clamped to the limits (a full-speed prediction saves a few more sweeps but overshoots
         into joint-limit traps now and then)."""
-        lead_by = _LEAD * elapsed
+        lead_by = SEED_LEAD * elapsed
         seed = [
             lo if (x := a + lead_by * v) < lo else hi if x > hi else x
             for a, v, (lo, hi) in zip(self.q, self.velocity, self.bounds, strict=True)

@@ -34,6 +34,7 @@ import numpy.typing as npt
 
 from retarget.control.bus import Bus
 from retarget.control.clock import Clock
+from retarget.control.limits import SEED_LEAD
 from retarget.control.loop import LoopConfig, TickRecord, run_ticks
 from retarget.control.source import HOLD, JointGoal, TargetSource, TickGoal
 from retarget.control.stats import TickStats
@@ -86,6 +87,9 @@ class _RigRun(TargetSource):
         self.plant, self.followers, self.solvers = plant, dict(followers), dict(solvers)
         self.settle, self.lockstep, self.idle_wait = settle, lockstep, idle_wait
         self.q_cmd: dict[str, Array] = {}
+        self.q_before: dict[str, Array] = {}  #: the commanded poses of the tick before (the seeds' last step)
+        lower, upper = plant.split(plant.lower), plant.split(plant.upper)
+        self.limits = {name: (lower[name], upper[name]) for name in lower}  #: each arm's joint limits, rad
         self.records = records
 
     def start(self, q_start: Array) -> int:
@@ -113,7 +117,7 @@ class _RigRun(TargetSource):
                 tool = self.followers[name].tool
                 targets.append(np.zeros(3) if tool is None else tool)
                 continue
-            result = own[name] = self.solvers[name].solve(goal.position, self.q_cmd[name], goal.rotation)
+            result = own[name] = self.solvers[name].solve(goal.position, self._seed(name), goal.rotation)
             parts[name] = result.q
             targets.append(goal.position)
             results.append(result)
@@ -127,7 +131,18 @@ class _RigRun(TargetSource):
         )
         return JointGoal(q, np.concatenate(targets), ik=ik)
 
+    def _seed(self, name: str) -> Array:
+        """Arm ``name``'s IK seed: where its commanded pose is heading, :data:`~retarget.control.limits.SEED_LEAD` of
+        its last step ahead, within its limits, as the one-arm loop seeds its IK (``StepLimiter.seed``).  Seeded from
+        the commanded pose itself, a move the goal check held was solved again to the same goal and held again: an
+        arm at rest by its base never left it for a target in front of it."""
+        q = self.q_cmd[name]
+        ahead = q + SEED_LEAD * (q - self.q_before.get(name, q))
+        lower, upper = self.limits[name]
+        return np.clip(ahead, lower, upper)
+
     def observe(self, tick: int, q_cmd: Array, q_present: Array | None) -> None:
+        self.q_before = self.q_cmd
         self.q_cmd = {name: np.array(q) for name, q in self.plant.split(q_cmd).items()}
         present = None if q_present is None else self.plant.split(q_present)
         for name, follower in self.followers.items():
