@@ -130,6 +130,12 @@ class CollisionModel(TargetPoints):
         self.clearance = float(clearance)
         self._kinematics(arm)
         self._shapes(geometry)
+        # each joint's envelopes depend on the arm and its shapes only: two models of one arm (a rig's two arms of
+        # one file share their Arm) measure them once
+        shared = arm._cache.get("joint_envelopes")
+        if shared is None or shared[0] is not geometry:
+            shared = arm._cache["joint_envelopes"] = (geometry, {})
+        self._envelopes: dict[tuple[int, int, int], tuple[float, float]] = shared[1]
         self._pairs(geometry, world, self_pairs)
         self._motion_bounds(arm)
         self._one = OnePose(self)
@@ -186,6 +192,9 @@ class CollisionModel(TargetPoints):
         """The least and greatest distance (metres) of capsules ``u`` and ``v`` (capsule indices) on the two sides
         of ``joint`` (``u`` on its parent frame, ``v`` on its child frame) over that joint's whole range (every 0.5
         degree; no other joint moves one against the other), in the parent frame."""
+        known = self._envelopes.get((u, v, joint))
+        if known is not None:
+            return known
         lo, hi = float(self.arm.lower[joint]), float(self.arm.upper[joint])
         q = np.linspace(lo, hi, max(2, math.ceil((hi - lo) / math.radians(0.5)) + 1))
         spin = np.eye(3) + np.sin(q)[:, None, None] * self._K[joint] + (1 - np.cos(q))[:, None, None] * self._K2[joint]
@@ -193,7 +202,8 @@ class CollisionModel(TargetPoints):
         a, b = self._cap_local[u]
         ends = np.einsum("mkl,el->mek", R, self._cap_local[v]) + self._trans0[joint]
         d = segment_segment(a, b, ends[:, 0], ends[:, 1]) - self._cap_r[u] - self._cap_r[v]
-        return float(d.min()), float(d.max())
+        envelope = self._envelopes[(u, v, joint)] = (float(d.min()), float(d.max()))
+        return envelope
 
     def _folding(self, links: Sequence[LinkShape], near: set[tuple[int, int]]) -> dict[tuple[int, int], float]:
         """Neighbouring capsules one joint apart that meet at the zero pose but that the joint swings by more than
