@@ -67,6 +67,7 @@ def test_replay_stops_through_the_rest_shutdown(arm, registered, capsys, tmp_pat
     simbus, url = registered
     simbus.log = SignalAfterSyncWrites(40, number(name), maxlen=simbus.log.maxlen)
     path = tmp_path / "run.csv"
+    before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}  # (the defaults, unless ignored)
     code = main(["replay", "--port", url, "--fast", "--loop", "--max-ticks", "5000", "--lead-in", "0", "--json",
                  "--telemetry", str(path)])  # fmt: skip
     out, err = capsys.readouterr()
@@ -78,8 +79,7 @@ def test_replay_stops_through_the_rest_shutdown(arm, registered, capsys, tmp_pat
     assert len(rows) == summary["ticks"] and all(None not in r.values() for r in rows)
     assert torque(simbus, arm) == [0] * 8
     np.testing.assert_allclose(servo_angles(simbus, arm), arm.rest, atol=0.06)
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
-    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
+    assert {s: signal.getsignal(s) for s in before} == before  # the handlers were put back
 
 
 @pytest.mark.parametrize(("name", "status"), SIGNALS[:2])

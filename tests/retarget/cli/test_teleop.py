@@ -125,6 +125,7 @@ def test_sigint_stops_through_the_shutdown_sequence(arm, registered, capsys, mon
             os.kill(os.getpid(), signal.SIGINT)
 
     monkeypatch.setattr(Follower, "observe", observe_then_ctrl_c)
+    before = signal.getsignal(signal.SIGINT)  # (the default, unless the suite runs with SIGINT ignored)
     # a slow move (1 cm/s over ~20 cm) that is still under way when Ctrl-C comes
     code, out, err = teleop(
         capsys, "--to", "0.3,0,0.2", "--max-speed", "0.01", "--port", url, "--fast", "--shutdown", "rest", "--json"
@@ -135,7 +136,7 @@ def test_sigint_stops_through_the_shutdown_sequence(arm, registered, capsys, mon
     assert "stopping" in err and "teleop (interrupted)" in err
     assert torque(simbus, arm) == [0] * 8  # moved to rest, then torque off
     np.testing.assert_allclose(servo_angles(simbus, arm), arm.rest, atol=0.06)
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    assert signal.getsignal(signal.SIGINT) is before  # the handler was put back
 
 
 def test_help_has_examples(capsys):
