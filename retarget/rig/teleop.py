@@ -23,7 +23,6 @@ Frames: messages are in the rig's world frame; targets, setpoints and reached po
 
 from __future__ import annotations
 
-import math
 import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
@@ -54,8 +53,8 @@ from retarget.teleop.follower import (
     PoseSolver,
     Settle,
     TeleopResult,
+    follower_result,
     require_tolerance,
-    rotation_angle,
 )
 from retarget.teleop.sources import Source
 
@@ -343,30 +342,8 @@ def run_rig_teleop(
     if q_final is None:
         raise RuntimeError("Expected the run's last goals in its stats")
     parts = plant.split(np.asarray(q_final, dtype=np.float64))
-    arms = {a.name: _arm_result(followers[a.name], parts[a.name], summary, stats, tolerance) for a in rig.arms}
+    arms = {
+        a.name: follower_result(followers[a.name], parts[a.name], summary, stats, tolerance=tolerance) for a in rig.arms
+    }
     rejects = rig_input.gate.counts() if rig_input is not None else {}
     return RigTeleopResult(rig=rig, summary=summary, stats=stats, arms=arms, rejects=rejects)
-
-
-def _arm_result(follower: Follower, q: Array, summary: RunSummary, stats: TickStats, tolerance: float) -> TeleopResult:
-    """One arm's part of a rig run: its follower's visits and last target, the FK of its final pose ``q``."""
-    T, _ = follower.arm.fk(q)
-    reached = np.array(T[:3, 3], dtype=np.float64)
-    rotation = follower.last_rotation
-    target = follower.last_target
-    return TeleopResult(
-        summary=summary,
-        stats=stats,
-        visits=tuple(follower.visits),
-        target=target,
-        reached=reached,
-        residual=None if target is None else float(np.linalg.norm(reached - target)),
-        tolerance=float(tolerance),
-        received=follower.received,
-        rejects=follower.source.rejects,
-        stale_events=follower.stale_events,
-        skipped=follower.skipped,
-        q_final=np.array(q, dtype=np.float64),
-        orientation_error=math.nan if rotation is None else rotation_angle(T[:3, :3], rotation),
-        orientation_tolerance=follower.orientation_tolerance,
-    )

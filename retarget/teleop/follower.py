@@ -64,7 +64,7 @@ from retarget.mapping.workspace import ik_weights
 from retarget.teleop.gate import Target, step_toward
 from retarget.teleop.sources import Source
 
-__all__ = ["Follower", "Phase", "PoseSolver", "TeleopResult", "Visit", "run_teleop", "tool_point"]
+__all__ = ["Follower", "Phase", "PoseSolver", "TeleopResult", "Visit", "follower_result", "run_teleop", "tool_point"]
 
 log = logging.getLogger(__name__)
 
@@ -614,28 +614,34 @@ def _result(
     q_final = stats.q_present if stats.q_present is not None else stats.q_cmd
     if q_final is None:
         raise RuntimeError("Expected the run's last goals in its stats")
-    T, _ = arm.fk(q_final)
-    reached = np.array(T[:3, 3], dtype=np.float64)
-    rotation = follower.last_rotation
-    orientation_error = math.nan if rotation is None else rotation_angle(T[:3, :3], rotation)
-    target = follower.last_target
-    residual = None if target is None else float(np.linalg.norm(reached - target))
     summary = stats.summary(
         arm=arm.name, clip=name, frames=follower.received, duration_s=stats.run_time, following=measured
     )
+    return follower_result(follower, q_final, summary, stats, tolerance=tolerance)
+
+
+def follower_result(
+    follower: Follower, q_final: npt.NDArray[np.float64], summary: RunSummary, stats: TickStats, *, tolerance: float
+) -> TeleopResult:
+    """The :class:`TeleopResult` of ``follower``'s run (one arm's part of a rig's too): its visits and last target,
+    and the FK of its final pose ``q_final`` ``(n_joints,)`` rad (present positions, else the goals)."""
+    T, _ = follower.arm.fk(q_final)
+    reached = np.array(T[:3, 3], dtype=np.float64)
+    rotation = follower.last_rotation
+    target = follower.last_target
     return TeleopResult(
         summary=summary,
         stats=stats,
         visits=tuple(follower.visits),
         target=target,
         reached=reached,
-        residual=residual,
+        residual=None if target is None else float(np.linalg.norm(reached - target)),
         tolerance=float(tolerance),
         received=follower.received,
         rejects=follower.source.rejects,
         stale_events=follower.stale_events,
         skipped=follower.skipped,
         q_final=np.array(q_final, dtype=np.float64),
-        orientation_error=orientation_error,
+        orientation_error=math.nan if rotation is None else rotation_angle(T[:3, :3], rotation),
         orientation_tolerance=follower.orientation_tolerance,
     )
