@@ -77,6 +77,7 @@ from retarget.mapping.targets import Targets
 from retarget.mapping.workspace import ik_weights
 
 __all__ = [
+    "ClipSlots",
     "ClipSource",
     "ControlLoop",
     "JointGoal",
@@ -376,7 +377,38 @@ class LeadIn:
         return JointGoal(self.q_from + s * (self.q_to - self.q_from), self.target, self.max_step)
 
 
-class ClipSource(TargetSource):
+class ClipSlots(TargetSource):
+    """What every clip source shares (:class:`ClipSource`, a rig's): the slots of ``loop``'s clip window (played
+    once, or looped with ``config.loop``), each slot's clip time, and the lead-in before slot 0 (``lead_in``,
+    planned by the subclass's ``start``: slots ``-n .. -1``)."""
+
+    def __init__(self, loop: ControlLoop):
+        self.loop = loop  #: the loop whose clip window and clip times the slots are
+        self.n_slots = loop.n_slots
+        self.looping = loop.config.loop
+        self.lead_in: LeadIn | Route | None = None  #: planned by ``start``
+
+    def finished(self, tick: int) -> bool:
+        return not self.looping and tick >= self.n_slots
+
+    def clip_time(self, tick: int, t: float) -> float:
+        """The clip seconds of slot ``tick`` (``t``, the slot's time, is not needed: the window and speed are)."""
+        if tick < 0:  # the lead-in: the clip waits at its start
+            return self.loop.config.start
+        return self.loop.clip_time(self.slot(tick))
+
+    def slot(self, tick: int) -> int:
+        """The clip slot that ``tick`` (>= 0) plays: the tick itself, or the tick in the window's pass when looping."""
+        return tick % self.n_slots if self.looping else tick
+
+    def lead_in_goal(self, tick: int) -> TickGoal:
+        """The lead-in's goal of ``tick`` (< 0)."""
+        if self.lead_in is None:
+            raise RuntimeError("Expected start() to plan a lead-in before a slot < 0")
+        return self.lead_in.goal(tick)
+
+
+class ClipSource(ClipSlots):
     """The :class:`TargetSource` of a :class:`ControlLoop`: its clip window, sampled a block of slots at a time.
 
     With ``lead_in_to`` (a pose ``(n_joints,)`` rad, normally :meth:`ControlLoop.initial_pose`), ``start``
@@ -392,12 +424,9 @@ class ClipSource(TargetSource):
         lead_in_to: npt.NDArray[np.float64] | None = None,
         plan: PathPlan | None = None,
     ):
-        self.loop = loop
+        super().__init__(loop)
         self.plan = plan
-        self.n_slots = loop.n_slots
-        self.looping = loop.config.loop
         self.lead_in_to = lead_in_to
-        self.lead_in: LeadIn | Route | None = None  #: planned by ``start``
         self._block0 = self._block1 = 0  # the slots [block0, block1) of a pass whose targets are sampled
         self._positions: npt.NDArray[np.float64] = np.empty((0, 3))  # theirs, (n, 3) m
         self._rotations: npt.NDArray[np.float64] | None = None  # (n, 3, 3), or None: no rotations
@@ -428,21 +457,10 @@ class ClipSource(TargetSource):
             )
         return -self.lead_in.n_slots
 
-    def finished(self, tick: int) -> bool:
-        return not self.looping and tick >= self.n_slots
-
-    def clip_time(self, tick: int, t: float) -> float:
-        """The clip seconds of slot ``tick`` (``t``, the slot's time, is not needed: the window and speed are)."""
-        if tick < 0:  # the lead-in: the clip waits at its start
-            return self.loop.config.start
-        return self.loop.clip_time(tick % self.n_slots if self.looping else tick)
-
     def target_at(self, tick: int, t: float) -> TickGoal:
         if tick < 0:
-            if self.lead_in is None:
-                raise RuntimeError("Expected start() to plan a lead-in before a slot < 0")
-            return self.lead_in.goal(tick)
-        i = tick % self.n_slots if self.looping else tick
+            return self.lead_in_goal(tick)
+        i = self.slot(tick)
         plan = self.plan
         if plan is not None and i < len(plan):
             return JointGoal(plan.q[i], plan.positions[i], None, plan.ik[i], plan.clamped[i])

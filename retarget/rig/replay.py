@@ -35,9 +35,8 @@ from retarget.control.bus import Bus
 from retarget.control.clock import Clock, MonotonicClock
 from retarget.control.loop import LoopConfig, TickRecord, run_ticks
 from retarget.control.plan import plan_path
-from retarget.control.replay import ControlLoop, LeadIn, plan_lead_in
-from retarget.control.safety import Route
-from retarget.control.source import JointGoal, TargetSource, TickGoal
+from retarget.control.replay import ClipSlots, ControlLoop, plan_lead_in
+from retarget.control.source import JointGoal, TickGoal
 from retarget.control.stats import TickStats
 from retarget.control.summary import ik_figures
 from retarget.control.tracking import Trajectory, at_velocity_limit, following
@@ -244,14 +243,13 @@ class RigReplay:
         return _summarize(self, ticks, records, duration_s=played)
 
 
-class _RigSource(TargetSource):
-    """Each slot's goal of a :class:`RigReplay`: the lead-in's, then every arm's IK pose of the slot."""
+class _RigSource(ClipSlots):
+    """Each slot's goal of a :class:`RigReplay`: the lead-in's, then every arm's IK pose of the slot (the slots and
+    clip times of the first arm's loop: every arm's are the same)."""
 
     def __init__(self, replay: RigReplay, *, lead_in: bool):
+        super().__init__(replay.loops[replay.rig.names[0]])
         self.replay, self.with_lead_in = replay, lead_in
-        self.n_slots, self.looping = replay.n_slots, replay.config.loop
-        self.first = replay.loops[replay.rig.names[0]]  #: the first arm's loop: the clip's times
-        self.lead_in: LeadIn | Route | None = None
         self.proof: RigProof | None = None  #: the plan's bounds (:meth:`start`; None: no plan, or no collision check)
         paths = replay.paths
         self.q = replay.plant.join({name: p.q for name, p in paths.items()})  # (n_slots, plant n_joints)
@@ -298,21 +296,10 @@ class _RigSource(TargetSource):
                 own[name] = (part, shared_bound(models[name]).prove(starts, ends, arm.notes, arm.index[: len(ends)]))
         self.proof = RigProof.prove(replay.between, path, own)
 
-    def finished(self, tick: int) -> bool:
-        return not self.looping and tick >= self.n_slots
-
-    def clip_time(self, tick: int, t: float) -> float:
-        loop = self.first
-        if tick < 0:
-            return loop.config.start
-        return loop.clip_time(tick % self.n_slots if self.looping else tick)
-
     def target_at(self, tick: int, t: float) -> TickGoal:
         if tick < 0:
-            if self.lead_in is None:
-                raise RuntimeError("Expected start() to plan a lead-in before a slot < 0")
-            return self.lead_in.goal(tick)
-        i = tick % self.n_slots if self.looping else tick
+            return self.lead_in_goal(tick)
+        i = self.slot(tick)
         return JointGoal(self.q[i], self.targets[i])
 
 
