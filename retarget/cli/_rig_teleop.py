@@ -38,7 +38,7 @@ from retarget.cli._bus import Stopped, failure_summary, say, signals_stop
 from retarget.cli._rig_replay import check_fast, open_buses, park_arms, ported, release, rig_clock
 from retarget.control.bus import Bus, connected
 from retarget.control.clock import Clock, MonotonicClock, VirtualClock
-from retarget.control.loop import LoopConfig, TickRecord
+from retarget.control.loop import LoopConfig, TickRecord, tee
 from retarget.control.safety import require_route
 from retarget.control.summary import RunSummary
 from retarget.errors import BusError, ConfigError
@@ -256,7 +256,7 @@ def _run(
     for stdout; None: none) after ``on_tick``; the file is flushed and closed on every way out."""
     records = RigTeleopRecords(rig, followers)
     with _telemetry(telemetry, records) as writer:
-        ticks = on_tick if writer is None else _both(on_tick, writer)
+        ticks = tee(on_tick, writer)
         return run_rig_teleop(rig, followers, on_tick=ticks, records=records, **run)
 
 
@@ -268,19 +268,6 @@ def _telemetry(target: str | None, records: RigTeleopRecords) -> Iterator[RigTel
     out: str | IO[str] = sys.stdout if target == "-" else target
     with RigTelemetry(out, records, trackers=records.trackers()) as writer:
         yield writer
-
-
-def _both(
-    first: Callable[[TickRecord], None] | None, second: Callable[[TickRecord], None]
-) -> Callable[[TickRecord], None]:
-    if first is None:
-        return second
-
-    def both(record: TickRecord) -> None:
-        first(record)
-        second(record)
-
-    return both
 
 
 def _report(args: argparse.Namespace, result: RigTeleopResult) -> None:

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from retarget.arm import Arm
+from retarget.control.loop import tee
 from retarget.errors import ConfigError
 
 if TYPE_CHECKING:
@@ -147,6 +148,4 @@ def forward(*, on_tick: Any, live: LiveView | None) -> Any:
     """``on_tick`` followed by ``live`` (either may be None)."""
     if live is None:
         return on_tick
-    from retarget.view.live import tee
-
     return tee(on_tick, live)

@@ -74,6 +74,7 @@ __all__ = [
     "TickStats",
     "TickTarget",
     "run_ticks",
+    "tee",
 ]
 
 log = logging.getLogger(__name__)
@@ -231,6 +232,25 @@ class TickRecord:
     gripper_cmd: float = math.nan
     gripper_present: float = math.nan
     gripper_current: float = math.nan
+
+
+def tee(*callbacks: Callable[[TickRecord], None] | None) -> Callable[[TickRecord], None] | None:
+    """One ``on_tick`` calling each of ``callbacks`` that is not None in order (None when there are none).
+
+    >>> seen = []
+    >>> tee(None, seen.append, lambda r: seen.append(-r))(1)
+    >>> seen, tee(None, None)
+    ([1, -1], None)
+    """
+    given = [c for c in callbacks if c is not None]
+    if len(given) <= 1:
+        return given[0] if given else None
+
+    def both(record: TickRecord) -> None:
+        for callback in given:
+            callback(record)
+
+    return both
 
 
 def run_ticks(

@@ -16,7 +16,6 @@ import logging
 import queue
 import threading
 import time
-from collections.abc import Callable
 from types import TracebackType
 
 import rerun as rr
@@ -26,7 +25,7 @@ from retarget.view.columns import TickColumns
 from retarget.view.rerun_log import log_ticks
 from retarget.view.scene import Scene
 
-__all__ = ["LiveView", "tee"]
+__all__ = ["LiveView"]
 
 log = logging.getLogger(__name__)
 
@@ -90,16 +89,3 @@ class LiveView:
                     self.logged += len(batch)
                 except Exception:  # never take the run down with the view
                     log.exception("view: logging %d ticks failed", len(batch))
-
-
-def tee(*callbacks: Callable[[TickRecord], None] | None) -> Callable[[TickRecord], None] | None:
-    """One ``on_tick`` calling each of ``callbacks`` that is not None in order (None when there are none)."""
-    given = [c for c in callbacks if c is not None]
-    if len(given) <= 1:
-        return given[0] if given else None
-
-    def both(record: TickRecord) -> None:
-        for callback in given:
-            callback(record)
-
-    return both
