@@ -407,14 +407,14 @@ class ProvenPath:
         if isinstance(q_to, np.ndarray):
             q_to = q_to.tolist()
         for i in (self._next, 0):  # the next segment, or the first again (the path played once more)
-            if i < len(self._low) and _near(q_to, self._ends[i]) and _near(q_from, self._starts[i]):
+            if i < len(self._low) and near_pose(q_to, self._ends[i]) and near_pose(q_from, self._starts[i]):
                 self._next = i + 1
                 return self._low[i]
         return None
 
 
-def _near(a: Sequence[float], b: list[float]) -> bool:
-    """Whether ``a`` is ``b``, or within :attr:`ProvenPath.EPS` of it in all (so per element; False for a NaN or a
+def near_pose(a: Sequence[float], b: list[float]) -> bool:
+    """Whether pose ``a`` is ``b``, or within :attr:`ProvenPath.EPS` of it in all (so per element; False for a NaN or a
     length mismatch: a NaN fails the sum's comparison)."""
     return a == b or len(a) == len(b) and sum(map(abs, map(sub, a, b))) <= ProvenPath.EPS
 

@@ -25,16 +25,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from operator import sub
-from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
+from retarget.ik.bound import ProvenPath, near_pose
 from retarget.rig.clearance import RigClearance
-
-if TYPE_CHECKING:
-    from retarget.ik.bound import ProvenPath
 
 __all__ = ["RigProof", "prove_apart", "sample_step"]
 
@@ -64,7 +60,7 @@ class RigProof:
     -1
     """
 
-    EPS = 1e-9  #: radians in all: how near a move's ends must be to its segment's
+    EPS = ProvenPath.EPS  #: radians in all: how near a move's ends must be to its segment's (:func:`near_pose`)
 
     __slots__ = ("_poses", "_ends", "_next", "arms", "apart")
 
@@ -91,7 +87,7 @@ class RigProof:
         after the last found, else the first that ends at ``q_to`` exactly; -1 when none."""
         poses = self._poses
         for k in (self._next, self._ends.get(tuple(q_to), -1)):
-            if 0 <= k < len(poses) - 1 and _near(q_to, poses[k + 1]) and _near(q_from, poses[k]):
+            if 0 <= k < len(poses) - 1 and near_pose(q_to, poses[k + 1]) and near_pose(q_from, poses[k]):
                 self._next = k + 1
                 return k
         return -1
@@ -121,11 +117,6 @@ def _lows(proven: ProvenPath, starts: Array, ends: Array) -> list[float]:
         low = proven.find(a, b)
         out.append(-math.inf if low is None else low)
     return out
-
-
-def _near(a: Sequence[float], b: list[float]) -> bool:
-    """Whether ``a`` is ``b``, or within :attr:`RigProof.EPS` of it in all (False for a NaN or another length)."""
-    return list(a) == b or (len(a) == len(b) and sum(map(abs, map(sub, a, b))) <= RigProof.EPS)
 
 
 def prove_apart(between: RigClearance, path: npt.ArrayLike) -> Array:
