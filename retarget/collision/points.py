@@ -97,7 +97,6 @@ class TargetPoints:
         [0.3, 0.0, 0.26]
         """
         point = np.array(p, dtype=np.float64)
-        self.point_margin(point)  # validates
         m = self.clearance
         for _ in range(32):
             if self.point_margin(point) >= m - 1e-12:
