@@ -82,9 +82,26 @@ def test_look_ahead_removes_the_causal_lag() -> None:
     causal = _causal(goals, np.zeros(3))
     peak = 39  # the goal's peak: slots 39 and 40 are both at 0.4
     assert int(np.argmax(causal[:, 0])) == peak + 2  # late
-    assert int(np.argmax(plan[:, 0])) == peak  # on time
+    assert int(np.argmax(plan[:, 0])) in (peak, peak + 1)  # on time (the goal is at its peak on both)
     plan_error, causal_error = np.abs(plan[:, 0] - column), np.abs(causal[:, 0] - column)
     assert plan_error.max() < 0.6 * causal_error.max()
+
+
+def test_a_too_sharp_oscillation_is_followed_in_phase_as_far_as_the_limits_allow() -> None:
+    """A sine that needs twice the acceleration limit (ramped in from rest over two periods): the plan swings in
+    phase with it, over nearly the most any path within the limit can (``a T^2 / 16`` peak to peak: full
+    acceleration one way for a quarter period, then the other), so its error is the least the limit leaves.
+    Measured: 97 % of that swing, RMS error 0.27 of the amplitude; the profile's forward and backward passes
+    averaged (the earlier method) swung 48 % and erred 0.80, as much as a path a quarter period late."""
+    period, amax = 40, 0.002
+    t = np.arange(400)
+    amplitude = 2 * amax / (2 * np.pi / period) ** 2
+    goal = np.clip(t / 80, 0, 1) * amplitude * np.sin(2 * np.pi * t / period)
+    plan = plan_path(goal[:, None], [0.0], lower=[-5.0], upper=[5.0], max_step=[1.0], max_accel=[amax])[:, 0]
+    steady = slice(150, 350)
+    swing = plan[steady].max() - plan[steady].min()
+    assert 0.9 * amax * period**2 / 16 < swing <= amax * period**2 / 16 * (1 + 1e-9)
+    assert np.sqrt(np.mean((plan[steady] - goal[steady]) ** 2)) < 0.35 * amplitude
 
 
 @pytest.mark.parametrize(
@@ -93,8 +110,10 @@ def test_look_ahead_removes_the_causal_lag() -> None:
         (np.zeros(5), {}, r"Expected goals of shape \(n, n_joints\), got \(5,\)"),
         (np.zeros((5, 3)), {"iterations": -1}, r"Expected iterations >= 0, got -1"),
         (np.zeros((5, 3)), {"max_step": np.zeros(3)}, r"Expected max_step and max_accel > 0"),
+        (np.zeros((5, 3)), {"speed_cost": -1.0}, r"Expected speed_cost >= 0 and 0 < easy_speed <= 1, got -1\.0 and"),
+        (np.zeros((5, 3)), {"easy_speed": 0.0}, r"Expected speed_cost >= 0 and 0 < easy_speed <= 1, got .* and 0\.0"),
     ],
-    ids=["1-d goals", "negative iterations", "zero speed"],
+    ids=["1-d goals", "negative iterations", "zero speed", "negative speed cost", "zero easy speed"],
 )
 def test_bad_arguments(goals: np.ndarray, kwargs: dict[str, object], match: str) -> None:
     args: dict[str, object] = {"lower": LO, "upper": HI, "max_step": VMAX, "max_accel": AMAX, **kwargs}
@@ -239,3 +258,18 @@ def test_steady_marks_where_a_joint_on_the_goal_falls_off() -> None:
     assert _steady(stepped, limits) == [30] * 30 + [31] + [60] * 29
     near = [0.99] * 10  # within the braking run of the upper limit (0.05^2 / 0.02 + 0.05 + 0.01 = 0.185)
     assert _steady(near, limits) == list(range(1, 11))
+
+
+@pytest.mark.parametrize("look_ahead", [True, False], ids=["planned", "causal"])
+def test_orientation_mode_on_the_demo_clip_converges(look_ahead: bool) -> None:
+    """The demo clip at orientation weight 0.5 (issue 14: IK converges on >= 99 % of ticks).  Planned, each tick's IK
+    is seeded where a joint at full speed toward the last solution would be: seeded from the last solution itself,
+    the roll joints wound up to their limits near the wrist singularity and stalled there (44 % converged, tracking
+    p95 291 mm).  Measured: planned 99.7 % and p95 18 mm, causal 99.6 % and 48 mm."""
+    arm = retarget.load_arm("wx250s")
+    config = retarget.MappingConfig.from_table(arm.mapping, overrides={"orientation_weight": 0.5})  # as export's flag
+    targets = retarget.retarget_targets(retarget.load_bvh(retarget.DEMO_CLIP), arm, config)
+    loop = ControlLoop(arm, targets, clock=VirtualClock(), look_ahead=look_ahead)
+    records, p95 = _run(loop)
+    assert sum(r.ik_converged for r in records) >= 0.99 * len(records)
+    assert p95 < (25.0 if look_ahead else 60.0)
