@@ -96,7 +96,7 @@ def add_clip_arguments(parser: argparse.ArgumentParser) -> None:
         "--no-look-ahead",
         action="store_true",
         help="solve each tick as it comes and follow it within the speed and acceleration limits (lags fast "
-        "motion: wx250s on motion_dance left, p95 62 mm from the target instead of 49); default: solve the whole clip "
+        "motion: wx250s on motion_dance left, p95 82 mm from the target instead of 30); default: solve the whole clip "
         "first and plan the joint path ahead, within the same limits (a few passes over the ticks before the "
         "first one; a --loop run is always causal)",
     )

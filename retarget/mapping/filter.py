@@ -34,9 +34,11 @@ from retarget.errors import require_positive
 
 __all__ = ["DEFAULT_BETA", "DEFAULT_CUTOFF_HZ", "DEFAULT_MIN_CUTOFF_HZ", "OneEuro", "zero_phase"]
 
-#: Hz, the zero-phase cutoff of a clip's targets (Winter: 4-6 Hz for human kinematics).  The low end: it keeps the
-#: commanded accelerations within the arms' limit often enough that wx250s follows motion_dance to p95 14 mm (6 Hz: 37)
-DEFAULT_CUTOFF_HZ = 4.0
+#: Hz, the zero-phase cutoff of a clip's targets (Winter: 4-6 Hz for human kinematics).  The high end: the filter
+#: only has to keep the capture's noise out; the look-ahead plan (retarget.control.plan) keeps the motion within the
+#: joints' speed and acceleration, so cutting the human's own fast moves too (4 Hz) only costs tracking: wx250s on
+#: motion_walk right, p95 2.0 mm at 6 Hz against 3.6 at 4 (bench/bench_smooth.py)
+DEFAULT_CUTOFF_HZ = 6.0
 DEFAULT_MIN_CUTOFF_HZ = 1.0  #: Hz, the One-Euro cutoff of a still hand (Casiez et al.'s starting point)
 DEFAULT_BETA = 20.0  #: Hz per m/s, how fast the One-Euro cutoff rises with the hand's speed
 

@@ -24,7 +24,7 @@ the ``[mapping]`` table of an arm description and by CLI flags
    shoulder joint, so a hanging arm maps in front of the robot, not into the
    base).
 
-The mapped points of a clip are then low-passed forward and backward at ``cutoff_hz`` (4 Hz by default;
+The mapped points of a clip are then low-passed forward and backward at ``cutoff_hz`` (6 Hz by default;
 :func:`~retarget.mapping.filter.zero_phase`: no lag, -6 dB at the cutoff), the hand's orientations too, and
 only then clamped: targets outside the :class:`~retarget.mapping.workspace.Workspace` (a shell
 ``min_reach..max_reach`` around the robot's shoulder pivot, above ``floor``, out of blocked zones) are pulled

@@ -86,21 +86,26 @@ def test_acceleration_and_jerk_are_the_commanded_trajectorys_differences(arm) ->
 @needs_clip
 def test_a_noisy_clip_filtered_commands_3x_less_jerk(arm) -> None:
     """The dance with 2 mm of seeded noise on its mapped targets: the default zero-phase filter lowers the RMS jerk
-    of the commanded joints by 3x or more (measured 4.5x with the loop's acceleration limit on; the targets' own
-    jerk drops 134x, tests/retarget/mapping/test_filter.py) and follows the clean clip more closely."""
+    of the commanded joints by 3x or more (measured 8.1x with the look-ahead plan; the targets'
+    own jerk drops 134x, tests/retarget/mapping/test_filter.py), and the noise moves the tool less: the noisy
+    run's tool path is nearer the clean clip's run under the same filter (measured median 0.86 mm against 1.89)."""
     clean = retarget_targets(retarget.load_bvh(CLIP), arm, _unfiltered(arm))
     noisy = clean.raw + np.random.default_rng(7).normal(0.0, 0.002, clean.raw.shape)
-    runs = {}
+    runs, noise_moved = {}, {}
     for cutoff in (0.0, 6.0):
-        targets = Targets.from_raw(noisy, frame_time=clean.frame_time, workspace=clean.workspace, cutoff_hz=cutoff)
-        trajectory = Trajectory()
-        _dry_run(arm, targets, trajectory)
-        runs[cutoff] = following(arm, trajectory, rate=100.0, reference=clean.reference)
+        tools = []
+        for raw in (noisy, clean.raw):
+            targets = Targets.from_raw(raw, frame_time=clean.frame_time, workspace=clean.workspace, cutoff_hz=cutoff)
+            trajectory = Trajectory()
+            _dry_run(arm, targets, trajectory)
+            tools.append(arm.chain.tool_points(np.array(trajectory.q_cmd)))
+            runs.setdefault(cutoff, following(arm, trajectory, rate=100.0, reference=clean.reference))
+        noise_moved[cutoff] = float(np.median(np.linalg.norm(tools[0] - tools[1], axis=1)))
     raw, smooth = runs[0.0], runs[6.0]
     assert raw is not None and smooth is not None
     assert smooth.jerk_rms * 3 < raw.jerk_rms
     assert smooth.accel_rms < raw.accel_rms
-    assert smooth.tracking_median_mm < raw.tracking_median_mm  # the noise is not followed
+    assert noise_moved[6.0] * 1.5 < noise_moved[0.0]  # the noise is not followed (metres, tool to tool)
 
 
 def test_derivatives_over_skipped_slots() -> None:
