@@ -49,20 +49,24 @@ def check_view_options(args: argparse.Namespace) -> None:
 
 
 def outputs(args: argparse.Namespace, *, spawn: bool) -> Outputs:
-    """The :class:`~retarget.view.sinks.Outputs` the options ask for (checks the extra is installed first)."""
+    """The :class:`~retarget.view.sinks.Outputs` the options ask for (checks first that the extra is installed, and
+    for a native viewer that there is a display, before anything is solved)."""
     from retarget.view import require
 
     flag = "--record" if args.record is not None else "--web" if args.web else "--view"
     require(flag, "rerun")
-    from retarget.view.sinks import Outputs
+    from retarget.view.sinks import Outputs, require_display
 
-    return Outputs(
+    out = Outputs(
         record=None if args.record is None else Path(args.record),
         web=args.web,
         web_port=_port(args.web_port, "--web-port"),
         grpc_port=_port(args.grpc_port, "--grpc-port"),
         spawn=spawn and not args.web and args.record is None,
     )
+    if out.spawn:
+        require_display()
+    return out
 
 
 def _port(text: str, option: str) -> int:

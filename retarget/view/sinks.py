@@ -202,6 +202,7 @@ def open_recording(
     if sinks:
         rec.set_sinks(*sinks, default_blueprint=layout)  # type: ignore[arg-type]
     if outputs.spawn:
+        require_display()
         try:
             rr.spawn(recording=rec, default_blueprint=layout, hide_welcome_screen=True)
         except Exception as exc:  # no display, no viewer binary
@@ -219,6 +220,26 @@ def open_recording(
     finally:
         rec.flush()
         rec.disconnect()
+
+
+def require_display(environ: dict[str, str] | None = None, platform: str = sys.platform) -> None:
+    """Raise :class:`ConfigError` when a native viewer cannot show: on Linux and the BSDs, neither ``DISPLAY`` nor
+    ``WAYLAND_DISPLAY`` set in ``environ`` (default ``os.environ``).  Without this, the viewer process dies at
+    once and the recording waits for it forever; elsewhere (macOS, Windows) there is always a display.
+
+    >>> require_display({"DISPLAY": ":0"}, "linux")
+    >>> require_display({}, "darwin")
+    >>> require_display({}, "linux")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    retarget.errors.ConfigError: --view: Expected a display for a native Rerun viewer (...); use --png, --web or ...
+    """
+    env = os.environ if environ is None else environ
+    if platform.startswith(("linux", "freebsd", "openbsd", "netbsd")) and not (
+        env.get("DISPLAY") or env.get("WAYLAND_DISPLAY")
+    ):
+        raise ConfigError("Expected a display for a native Rerun viewer (DISPLAY and WAYLAND_DISPLAY are unset); "
+                          "use --png, --web or --record", key="--view", value=True)  # fmt: skip
 
 
 def web_url(grpc_uri: str, web_port: int) -> str:

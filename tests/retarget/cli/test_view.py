@@ -167,3 +167,20 @@ def test_logged_capsules_are_the_collision_models_for_the_logged_angles(demo_rrd
         np.testing.assert_allclose(radii[-1], r, rtol=1e-6)
     moved = np.abs(np.array(starts[199]) - np.array(starts[0])).max()
     assert moved > 0.01  # the capsules follow the arm
+
+
+@pytest.mark.parametrize("rig", [[], ["--rig", "wx250s-pair"]], ids=["one-arm", "rig"])
+def test_the_native_viewer_without_a_display_is_one_line_and_exit_2(capsys, monkeypatch, rig):
+    """No display (a server, CI): the native viewer would die at once and the recording wait for it forever; the
+    command says so at once instead, with the other ways to look, and solves nothing."""
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setattr(sys, "platform", "linux")
+    monkeypatch.setattr("retarget.cli.view.solve", None)  # nothing is solved first (calling None would raise)
+    monkeypatch.setattr("retarget.cli.view.solve_rig", None)
+    assert main(["view", "--end", "0.2", *rig]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == (
+        "retarget: --view: Expected a display for a native Rerun viewer (DISPLAY and WAYLAND_DISPLAY are "
+        "unset); use --png, --web or --record (got True)"
+    ), err
