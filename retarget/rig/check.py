@@ -9,17 +9,23 @@ against each other, on the pose and on the joint-space segment to it.
   pair ``(i, j)`` closes by at most the sum of its two shapes' travels.  Every pair's clearance at the last pose
   measured (the reference) therefore bounds it at any pose from there; that bound is concave along a straight
   move, so a move whose ends both keep the clearance from the reference needs no query (most ticks).  Otherwise
-  the goal is measured (the new reference), and the segment is bounded pair by pair from its ends' clearances
-  ``d0``, ``d1`` and the pair's travel ``M``: ``(d0 + d1 - M) / 2``; only when that falls short is the segment
-  sampled, finely enough that no point moves more than half the clearance between samples.
+  the goal is measured (the new reference; a goal within the clearance is refused at once), and the segment is
+  bounded pair by pair from its ends' clearances ``d0``, ``d1`` (a pose held after a blocked goal: its own
+  measurement, kept from when it was allowed) and the pair's travel ``M``: ``(d0 + d1 - M) / 2``; only when that
+  falls short is the segment sampled, finely enough that no point moves more than half the clearance between
+  samples, and only for the pairs that bound leaves at or below its ends' least (no other can be the samples'
+  least, the ends being among them).
 
 A path planned ahead (a clip's look-ahead plan) comes with its :class:`~retarget.rig.proof.RigProof`: every
 segment bounded before the run, each arm's own and the arms' against each other.  A tick whose move is a segment of
 it takes that segment's bounds where they keep the clearance and checks the rest as above; an arm's own check that
 a proof stood in for starts again from the pose held when it is next needed.
 
-A goal is allowed only when every check allows it.  A check that allowed its part of a goal another part blocked
-starts again from the pose held (its bookkeeping assumed the goal was written), so every bound stays sound.
+A goal is allowed only when every check allows it.  The arms apart go first: their bookkeeping (the poses
+measured) holds whatever is written, so a goal they block leaves each arm's check as it was, at the pose held.  An
+arm's check that allowed its part of a goal the other arm's blocked starts again from the pose held (its
+bookkeeping assumed the goal was written), so every bound stays sound.  Each check's verdict is its own sampling's
+(its bounds only stand in where they prove the same), so none depends on the order or on what was checked before.
 
 Arrays: ``(n_joints,)`` radians, the plant's vector (:class:`~retarget.rig.plant.RigPlant`); clearances metres.
 """
@@ -42,6 +48,8 @@ Array = npt.NDArray[np.float64]
 #: a pose the arms' clearances were measured at: the pose, each pair's clearance, their least, each shape's levers,
 #: the whole rig's levers and spread (:meth:`RigGoalCheck._measured`)
 _Reference = tuple[Array, Array, float, Array, list[tuple[float, float, float]]]
+
+_RECENT = 4  #: the references :meth:`RigGoalCheck._recall` keeps
 
 if TYPE_CHECKING:
     from retarget.collision import CollisionModel
@@ -88,6 +96,7 @@ class RigGoalCheck:
         self._limit = float(between.clearance)
         self._step = sample_step(self._limit)  # no pair closes by more than this between two samples
         self._pairs = between.pair_shapes
+        self._sides = (np.unique(self._pairs[0]), np.unique(self._pairs[1]))  #: the shapes either side of any pair
         #: ``(n_shapes, n_joints)``: the second-order term of each shape's travel (see :meth:`_falls`), per rad^2
         self._spread = travel_spread(between)
         i, j = self._pairs
@@ -95,6 +104,9 @@ class RigGoalCheck:
         #: the last pose whose arm-against-arm clearances were measured (the bounds' reference): the pose, each pair's
         #: clearance, their least, and each shape's levers there
         self._ref = self._measured(q0)
+        #: the last few poses measured (the newest first) and their references: a pose held after a blocked goal
+        #: was measured when it was allowed
+        self._recent: list[tuple[list[float], _Reference]] = [(q0.tolist(), self._ref)]
         self.clearance = min(self._ref[2], *(c.clearance for c in self._checks.values()))
         #: per segment of the proof: whether its bounds keep every clearance, and their least (metres)
         self._proven: list[bool] = []
@@ -116,8 +128,13 @@ class RigGoalCheck:
             self._behind.update(self._names)
             self.clearance = self._proven_low[k]
             return True
+        apart = -math.inf if proof is None or k < 0 else proof.apart[k]
+        if apart < self._limit:  # the arms apart first: its bookkeeping holds whatever is written
+            apart = self._segment_apart(a, b)
+            if apart < self._limit:
+                return False
         passed: list[str] = []
-        lows: list[float] = []
+        lows: list[float] = [apart]
         for name, s in self._parts:
             own = proof.arms.get(name) if proof is not None and k >= 0 else None
             low = -math.inf if own is None else own[k]
@@ -131,13 +148,7 @@ class RigGoalCheck:
                 low = check.clearance
             passed.append(name)
             lows.append(low)
-        apart = -math.inf if proof is None or k < 0 else proof.apart[k]
-        if apart < self._limit:
-            apart = self._segment_apart(a, b)
-            if apart < self._limit:
-                self._behind.update(passed)
-                return False
-        self.clearance = min(apart, *lows)
+        self.clearance = min(lows)
         return True
 
     def _own_check(self, name: str, q_held: list[float]) -> GoalCheck:
@@ -153,7 +164,7 @@ class RigGoalCheck:
         whole rig's: per joint the greatest lever (and spread) of either side of any pair, summed, so that
         ``whole[0] @ |dq| + whole[1] @ dq^2`` bounds every pair's fall at once."""
         d, levers = self.between.measure(self.plant.split(q))
-        i, j = self._pairs
+        i, j = self._sides
         lever = (levers[i].max(axis=0) + levers[j].max(axis=0)).tolist()
         whole = list(zip(lever, self._whole_spread, q.tolist(), strict=True))
         return q, d, float(d.min(initial=math.inf)), levers, whole
@@ -180,7 +191,9 @@ class RigGoalCheck:
         keeps at least ``d_ref - fall(q - q_ref)`` pair by pair (:meth:`_falls`), and that bound is concave along
         a straight move, so its least is at an end.  When it falls short, ``b`` is measured (the new reference) and
         the segment is bounded from its ends pair by pair (``(d0 + d1 - fall(a - b)) / 2``), or sampled near a
-        contact."""
+        contact: only the pairs that bound leaves at or below the ends' least (no other can be the least of the
+        samples, which the ends are among), so the figure is that of all pairs sampled.  Every bound here is at
+        most the samples' least, so the verdict is the sampling's whatever the reference."""
         q_ref, d_ref, least, levers, whole = self._ref
         low = least - max(_fall(whole, q_from), _fall(whole, q_to))  # the whole rig at once
         if low >= self._limit:
@@ -191,17 +204,36 @@ class RigGoalCheck:
         low = float(np.minimum(d0, low_b).min(initial=math.inf))
         if low >= self._limit:
             return low
-        if float(d0.min(initial=math.inf)) < self._limit:
-            d0 = self._measured(a)[1]
-        self._ref = ref = self._measured(b)
+        if float(d0.min(initial=math.inf)) < self._limit:  # (after a blocked goal: the pose held, measured before)
+            d0 = self._recall(q_from, a)[1]
+        self._ref = ref = self._measure(q_to, b)
+        if ref[2] < self._limit:  # the goal itself is within the clearance: refused, as its sample would be
+            return ref[2]
         fall = self._falls(ref[3], (a - b)[:, None])[:, 0]  # how far each pair may close along the move
-        low = float((0.5 * (d0 + ref[1] - fall)).min(initial=math.inf))
+        pairs = 0.5 * (d0 + ref[1] - fall)
+        low = float(pairs.min(initial=math.inf))
         if low < self._limit and float(fall.max(initial=0.0)) > 0:
             n = max(2, math.ceil(float(fall.max()) / self._step) + 1)
             s = np.linspace(0.0, 1.0, n)[:, None]
-            sampled = self.between.distances(self.plant.split(a + s * (b - a)))
-            low = min(float(sampled.min(initial=math.inf)), float(d0.min(initial=math.inf)), ref[2])
+            ends_least = min(float(d0.min(initial=math.inf)), ref[2])
+            near = np.flatnonzero(~(pairs > ends_least))  # (a nan pair too)
+            sampled = self.between.distances(self.plant.split(a + s * (b - a)), pairs=near)
+            low = min(float(sampled.min(initial=math.inf)), ends_least)
         return low
+
+    def _measure(self, q: list[float], pose: Array) -> _Reference:
+        """:meth:`_measured` of the plant's pose ``q`` (``pose`` its array), kept among the last few measured."""
+        ref = self._measured(pose)
+        self._recent = [(q, ref), *self._recent[: _RECENT - 1]]
+        return ref
+
+    def _recall(self, q: list[float], pose: Array) -> _Reference:
+        """The reference of the plant's pose ``q`` (``pose`` its array): one of the last few measured, else measured
+        now."""
+        for known, ref in self._recent:
+            if known == q:
+                return ref
+        return self._measure(q, pose)
 
 
 def _fall(whole: list[tuple[float, float, float]], q: Sequence[float]) -> float:

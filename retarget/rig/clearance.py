@@ -86,7 +86,6 @@ class _Placer:
         self.sizes = [s.frames.size for s in shapes]
         n = self.n = max(1, *(int(s.frames.max(initial=0)) for s in shapes))
         A = len(rig_arms)
-        self.n_joints = [a.arm.chain.n for a in rig_arms]
         axes = np.zeros((A, n, 3))
         self._local = np.broadcast_to(np.eye(4), (A, n, 4, 4)).copy()  # a padded joint: no offset, no turn
         for k, a in enumerate(rig_arms):
@@ -102,8 +101,9 @@ class _Placer:
         self._arm = np.concatenate([np.full(s.frames.size, k, dtype=np.intp) for k, s in enumerate(shapes)])
         self._frame = np.concatenate([s.frames for s in shapes])
         self._ends = np.concatenate([s.ends for s in shapes])  # (m, 2, 3) in their frames
-        #: (shape, joint) pairs where the joint moves the shape: joint j < the shape's frame, within its arm
-        self._moves = np.arange(n)[None, :] < self._frame[:, None]
+        #: the (shape, joint) pairs where the joint moves the shape (joint j < the shape's frame, within its arm):
+        #: ``(k,)`` each, the shapes' and the joints' indices
+        self.moved = np.nonzero(np.arange(n)[None, :] < self._frame[:, None])
 
     def frames(self, Q: list[Array]) -> Array:
         """Every arm's frames ``(N, n_arms, n + 1, 4, 4)``, world, of ``Q``: each arm's ``(N, n_joints)`` rad."""
@@ -123,21 +123,26 @@ class _Placer:
 
     def ends(self, Q: list[Array], frames: Array | None = None) -> list[Array]:
         """Each arm's shapes' end points ``(N, m_arm, 2, 3)`` metres, world (of ``frames``, else of ``Q``)."""
-        F = (self.frames(Q) if frames is None else frames)[:, self._arm, self._frame]  # (N, m, 4, 4)
+        return np.split(self.all_ends(self.frames(Q) if frames is None else frames), np.cumsum(self.sizes)[:-1], axis=1)
+
+    def all_ends(self, frames: Array) -> Array:
+        """Every arm's shapes' end points ``(N, m, 2, 3)`` metres, world, of ``frames`` (arms in turn)."""
+        F = frames[:, self._arm, self._frame]  # (N, m, 4, 4)
         out: Array = (F[:, :, None, :3, :3] @ self._ends[None, :, :, :, None])[..., 0] + F[:, :, None, :3, 3]
-        return np.split(out, np.cumsum(self.sizes)[:-1], axis=1)
+        return out
 
     def levers(self, frames: Array, ends: Array) -> Array:
-        """``(..., m, n)`` metres: each shape's greatest distance from the axis of each joint ``j`` of its arm that
-        moves it (0 for the others), of poses' ``frames`` ``(..., n_arms, n + 1, 4, 4)`` and ends ``(..., m, 2, 3)``,
-        world (one pose, or many along the leading axes)."""
+        """``(..., k)`` metres: each shape's greatest distance from the axis of each joint that moves it (the pairs
+        :attr:`moved`), of poses' ``frames`` ``(..., n_arms, n + 1, 4, 4)`` and ends ``(..., m, 2, 3)``, world (one
+        pose, or many along the leading axes)."""
+        shape, joint = self.moved
         R, origin = frames[..., 1:, :3, :3], frames[..., 1:, :3, 3]  # joint j's axis runs through frame j + 1's origin
         axis = (R @ self._axes[..., None])[..., 0]  # (..., n_arms, n, 3) unit, world
-        d = ends[..., :, None, :, :] - origin[..., self._arm, :, None, :]  # (..., m, n, 2, 3)
-        along = np.einsum("...mjek,...mjk->...mje", d, axis[..., self._arm, :, :])
-        square = np.einsum("...mjek,...mjek->...mje", d, d) - along * along
+        arm = self._arm[shape]
+        d = ends[..., shape, :, :] - origin[..., arm, joint, None, :]  # (..., k, 2, 3)
+        along = np.einsum("...ek,...k->...e", d, axis[..., arm, joint, :])
+        square = np.einsum("...ek,...ek->...e", d, d) - along * along
         out: Array = np.sqrt(np.maximum(square, 0.0)).max(axis=-1)
-        out[..., ~self._moves] = 0.0
         return out
 
 
@@ -188,11 +193,9 @@ class RigClearance:
         for shapes, joints in zip(self.shapes.values(), self.joint_slices, strict=True):
             self.motion[row : row + shapes.frames.size, joints] = shapes.motion
             row += shapes.frames.size
-        # where each (shape, joint) lever goes in an (n_shapes, n_rig_joints) matrix
-        n = self._placer.n
-        column = np.array([s.start for s in self.joint_slices])[self._placer._arm][:, None] + np.arange(n)[None, :]
-        fits = np.arange(n)[None, :] < np.array(self._placer.n_joints)[self._placer._arm][:, None]
-        self._lever_at = (np.nonzero(fits)[0], column[fits], fits)
+        # where each lever (a shape, a joint that moves it) goes in an (n_shapes, n_rig_joints) matrix
+        shape, joint = self._placer.moved
+        self._lever_at = (shape, np.array([s.start for s in self.joint_slices])[self._placer._arm[shape]] + joint)
 
     def _poses(self, poses: Mapping[str, npt.ArrayLike]) -> tuple[list[Array], bool]:
         """Each arm's poses ``(N, n_joints)`` in rig order, and whether one pose per arm was given."""
@@ -200,32 +203,69 @@ class RigClearance:
         one = all(q.ndim == 1 for q in Q)
         return [np.atleast_2d(q) for q in Q], one
 
-    def distances(self, poses: Mapping[str, npt.ArrayLike]) -> Array:
+    def distances(self, poses: Mapping[str, npt.ArrayLike], *, pairs: npt.NDArray[np.intp] | None = None) -> Array:
         """Every arm-arm shape pair's signed clearance, metres: ``(n_pairs,)`` for one pose per arm, or
-        ``(n_poses, n_pairs)`` for ``(n_poses, n_joints)`` arrays; ``poses`` maps each rig arm's name to its pose."""
+        ``(n_poses, n_pairs)`` for ``(n_poses, n_joints)`` arrays; ``poses`` maps each rig arm's name to its pose.
+        ``pairs``: only these pairs (indices into :attr:`pair_names`), their columns in that order (each the same
+        figure as among all pairs)."""
         Q, one = self._poses(poses)
-        out = self._pair_gaps(np.concatenate(self._placer.ends(Q), axis=1))
+        ends = self.ends(Q)
+        if pairs is None:
+            out = self._pair_gaps(ends)
+        else:
+            rows = np.arange(len(ends))[:, None]
+            out = self.pair_gaps(ends, rows, np.asarray(pairs, dtype=np.intp)[None, :])
         return out[0] if one else out
 
-    def measure(self, poses: Mapping[str, npt.ArrayLike]) -> tuple[Array, Array]:
+    def ends(self, Q: list[Array]) -> Array:
+        """Every arm's shapes' end points ``(n_poses, n_shapes, 2, 3)`` metres, world (shapes in rig order, as
+        :attr:`pair_shapes` counts them), of each arm's poses ``Q`` ``(n_poses, n_joints)`` rad in rig order."""
+        return self._placer.all_ends(self._placer.frames(Q))
+
+    def pair_gaps(self, ends: Array, rows: npt.NDArray[np.intp], pairs: npt.NDArray[np.intp]) -> Array:
+        """The signed clearances of pairs ``pairs`` at poses ``rows`` (index arrays of one shape, broadcast
+        together) of world ``ends`` ``(n_poses, n_shapes, 2, 3)`` (:meth:`ends`): an array of their shape, metres
+        (each the same figure as :meth:`distances` gives for that pose and pair)."""
+        i, j = self.pair_shapes[0][pairs], self.pair_shapes[1][pairs]
+        p1, q1, p2, q2 = ends[rows, i, 0], ends[rows, i, 1], ends[rows, j, 0], ends[rows, j, 1]
+        out: Array = segment_segment(p1, q1, p2, q2) - self._pair_radii[pairs]
+        return out
+
+    def measure(self, poses: Mapping[str, npt.ArrayLike], *, every_pair: bool = True) -> tuple[Array, Array]:
         """Of one pose per arm: every pair's clearance ``(n_pairs,)`` (as :meth:`distances`) and every shape's lever
         ``(n_shapes, n_rig_joints)`` metres: its greatest distance from each joint's axis (0 for a joint that does
         not move it), joints in the rig's order (every arm's in turn, as :attr:`motion`'s columns); of
-        ``(n_poses, n_joints)`` arrays, ``(n_poses, n_pairs)`` and ``(n_poses, n_shapes, n_rig_joints)``."""
+        ``(n_poses, n_joints)`` arrays, ``(n_poses, n_pairs)`` and ``(n_poses, n_shapes, n_rig_joints)``.
+        ``every_pair=False``: each pose's least clearance (0-d, or ``(n_poses,)``) instead of every pair's: the least
+        of :meth:`distances`, from only the pairs that may be the nearest (:meth:`_least`)."""
         Q, one = self._poses(poses)
         frames = self._placer.frames(Q)
-        ends = np.concatenate(self._placer.ends(Q, frames), axis=1)
-        rows, columns, fits = self._lever_at
+        ends = self._placer.all_ends(frames)
         levers = np.zeros((len(ends), *self.motion.shape))
-        levers[:, rows, columns] = self._placer.levers(frames, ends)[:, fits]
-        gaps = self._pair_gaps(ends)
+        levers[:, self._lever_at[0], self._lever_at[1]] = self._placer.levers(frames, ends)
+        gaps = self._pair_gaps(ends) if every_pair else self._least(ends)
         return (gaps[0], levers[0]) if one else (gaps, levers)
+
+    def _least(self, ends: Array) -> Array:
+        """``(n_poses,)`` the least signed clearance of every arm's shapes' world ends ``(n_poses, m, 2, 3)``: the
+        least of :meth:`_pair_gaps`, the same figure, measured only for the pairs that may be the nearest.
+
+        Each capsule lies within its half length ``h`` of its middle ``c``, so a pair's clearance is at most
+        ``U = |c_i - c_j| - r_i - r_j`` (the middles are on the segments) and at least ``U - h_i - h_j``: a pair
+        whose least exceeds some pair's most (and a nanometre of rounding) is never the nearest."""
+        i, j = self.pair_shapes
+        middle = 0.5 * (ends[:, :, 0] + ends[:, :, 1])
+        half = 0.5 * np.linalg.norm(ends[:, :, 1] - ends[:, :, 0], axis=-1)
+        most = np.linalg.norm(middle[:, i] - middle[:, j], axis=-1) - self._pair_radii  # (n_poses, n_pairs)
+        least = most - half[:, i] - half[:, j]
+        rows, pairs = np.nonzero(~(least > most.min(axis=1, keepdims=True) + 1e-9))  # each pose's nearest among them
+        out: Array = np.minimum.reduceat(self.pair_gaps(ends, rows, pairs), np.searchsorted(rows, np.arange(len(ends))))
+        return out
 
     def _pair_gaps(self, ends: Array) -> Array:
         """``(n_poses, n_pairs)`` signed clearances of every arm's shapes' world ends ``(n_poses, m, 2, 3)``."""
-        i, j = self.pair_shapes
-        a, b = ends[:, i], ends[:, j]
-        out: Array = segment_segment(a[..., 0, :], a[..., 1, :], b[..., 0, :], b[..., 1, :]) - self._pair_radii
+        i, j = self.pair_shapes  # (each end gathered whole: arithmetic on contiguous arrays)
+        out: Array = segment_segment(ends[:, i, 0], ends[:, i, 1], ends[:, j, 0], ends[:, j, 1]) - self._pair_radii
         return out
 
     def min_clearance(self, poses: Mapping[str, npt.ArrayLike]) -> Array:

@@ -9,7 +9,8 @@ from pose ``k`` to pose ``k + 1`` of it (pose 0 the start).  :class:`RigProof` h
 - the arms' bound against each other (:func:`prove_apart`): poses measured in batches, coarse to fine, each pair's
   clearance bounded along a segment by the same first- and second-order travel bounds as the tick check's
   (:class:`~retarget.rig.check.RigGoalCheck`); a close pass those bounds cannot clear is sampled as the tick
-  check would sample it, all such segments' samples in a few batches.
+  check would sample it (the same poses, and the same figure: the least of the pairs that may be the nearest), all
+  such segments' samples in a few batches.
 
 :meth:`RigProof.segment` finds a move's segment: the next one, else the one ending at the move's end (the path
 rejoined after a blocked tick, or played again).  Every bound is a lower bound of the least clearance along its
@@ -85,38 +86,28 @@ class RigProof:
     def segment(self, q_from: Sequence[float], q_to: Sequence[float]) -> int:
         """The segment the move ``q_from -> q_to`` (rad) is, to within :attr:`EPS` in all at each end: the next one
         after the last found, else the first that ends at ``q_to`` exactly; -1 when none."""
-        poses = self._poses
-        for k in (self._next, self._ends.get(tuple(q_to), -1)):
-            if 0 <= k < len(poses) - 1 and near_pose(q_to, poses[k + 1]) and near_pose(q_from, poses[k]):
-                self._next = k + 1
-                return k
+        poses, k = self._poses, self._next
+        if k < len(poses) - 1 and near_pose(q_to, poses[k + 1]) and near_pose(q_from, poses[k]):
+            self._next = k + 1
+            return k
+        k = self._ends.get(tuple(q_to), -1)  # (then its end is ``q_to``)
+        if k >= 0 and near_pose(q_from, poses[k]):
+            self._next = k + 1
+            return k
         return -1
 
     @classmethod
-    def prove(cls, between: RigClearance, path: npt.ArrayLike, arms: Mapping[str, tuple[slice, ProvenPath]]
-              ) -> RigProof:  # fmt: skip
+    def prove(cls, between: RigClearance, path: npt.ArrayLike, arms: Mapping[str, Sequence[float]]) -> RigProof:
         """The proof of ``path`` ``(n + 1, n_joints)`` rad: the arms apart (:func:`prove_apart`) and each arm's own
-        bounds read from ``arms[name] = (its joints in the path, its ProvenPath of them)``."""
+        bounds ``arms[name]`` ``(n,)`` metres, of its part of these very segments (its collision bound's
+        :meth:`~retarget.ik.bound.ClearanceBound.prove` of them: the :attr:`~retarget.ik.bound.ProvenPath.lows`)."""
         P = np.asarray(path, dtype=np.float64)
-        own = {name: _lows(proven, P[:-1, part], P[1:, part]) for name, (part, proven) in arms.items()}
         apart, at = _prove_apart(between, P)
         short = np.flatnonzero(apart < between.clearance)
         if at is not None and short.size:  # close passes: sampled now as their ticks would sample them
             at.measure(np.concatenate([short, short + 1]))
             apart[short] = np.maximum(apart[short], sampled_along(between, travel_spread(between), at, short))
-        return cls(P, own, apart, between)
-
-
-def _lows(proven: ProvenPath, starts: Array, ends: Array) -> list[float]:
-    """Each segment's bound in ``proven`` (found in order, as the loop would; ``-inf`` for one it misses): its own
-    list when it was proven from these very segments."""
-    if proven.matches(starts, ends):
-        return proven.lows
-    out = []
-    for a, b in zip(starts.tolist(), ends.tolist(), strict=True):
-        low = proven.find(a, b)
-        out.append(-math.inf if low is None else low)
-    return out
+        return cls(P, arms, apart, between)
 
 
 def prove_apart(between: RigClearance, path: npt.ArrayLike) -> Array:
@@ -124,11 +115,12 @@ def prove_apart(between: RigClearance, path: npt.ArrayLike) -> Array:
     (segment ``k``: pose ``k`` -> ``k + 1``): ``(n,)`` metres.
 
     Level by level (:data:`LEVELS`: ``K`` = 24, 6, 2, 1) each segment not yet proven is bounded from the poses at
-    the multiples of ``K`` either side of it, measured (each pair's clearance, each shape's levers) a batch at a
-    time: from a measured pose no pair closes by more than the whole rig's fall (every pair's at once, that pose's
-    levers: :func:`~retarget.rig.check._fall`), a convex function of the move, so its bound along a segment is
-    least at an end.  After the last level (the segment's own ends) each pair of a segment still short is bounded
-    by ``(d0 + d1 - fall) / 2`` (:func:`pair_falls` from either end's levers).  A segment still short keeps its best
+    the multiples of ``K`` either side of it, measured (the least pair's clearance, from only the pairs that may be
+    the nearest, and each shape's levers) a batch at a time: from a measured pose no pair closes by more than the
+    whole rig's fall (every pair's at once, that pose's levers: :func:`~retarget.rig.check._fall`), a convex
+    function of the move, so its bound along a segment is least at an end.  After the last level (the segment's own
+    ends, now with every pair's clearance) each pair of a segment still short is bounded by ``(d0 + d1 - fall) / 2``
+    (:func:`pair_falls` from either end's levers).  A segment still short keeps its best
     bound (:meth:`RigProof.prove` samples it then)."""
     return _prove_apart(between, path)[0]
 
@@ -148,7 +140,7 @@ def _prove_apart(between: RigClearance, path: npt.ArrayLike) -> tuple[Array, _Me
     for step in LEVELS:
         r0 = todo // step * step
         for r in (r0, np.minimum(r0 + step, n)):
-            at.measure(r)
+            at.measure(r, every_pair=False)
             w = at.whole[r]
             fall = np.maximum(
                 whole_falls(w, whole_spread, P[todo] - P[r]), whole_falls(w, whole_spread, P[todo + 1] - P[r])
@@ -167,7 +159,9 @@ def sampled_along(between: RigClearance, spread: Array, at: _Measured, starts: n
     poses sampled along it (ends included) as the tick check samples a move near contact
     (:meth:`~retarget.rig.check.RigGoalCheck._segment_apart`, the same poses: so many that, by the end pose's levers,
     no pair closes by more than :func:`sample_step` between two samples); ``(k,)`` metres.  Not a bound: the tick
-    check's own figure for such a move.  All the segments' samples are measured in batches of :data:`_BATCH`."""
+    check's own figure for such a move.  Only the pairs that :func:`pairs_along` leaves at or below the least of the
+    segment's ends are sampled: no other can be the least of the samples, the first of which is the start.  All the
+    segments' samples are measured in batches of :data:`_BATCH` poses."""
     P = at.poses
     dq = P[starts + 1] - P[starts]
     fall = pair_falls(between, spread, at.levers[starts + 1], dq).max(axis=1)
@@ -176,11 +170,20 @@ def sampled_along(between: RigClearance, spread: Array, at: _Measured, starts: n
     s = np.concatenate([np.linspace(0.0, 1.0, int(c)) for c in counts])
     a = P[starts]
     poses = a[segment] + s[:, None] * dq[segment]
+    ends_least = np.minimum(at.least[starts], at.least[starts + 1])
+    kept = ~(pairs_along(between, spread, at, starts, dq) > ends_least[:, None])  # (k, n_pairs); a nan pair too
+    segments = np.arange(starts.size)
+    kept[segments, at.gaps[starts].argmin(axis=1)] = kept[segments, at.gaps[starts + 1].argmin(axis=1)] = True
+    near = [np.flatnonzero(row) for row in kept]
     least = np.empty(len(poses))
     for k in range(0, len(poses), _BATCH):
         some = poses[k : k + _BATCH]
-        arms = {a.name: some[:, part] for a, part in zip(between.rig.arms, between.joint_slices, strict=True)}
-        least[k : k + _BATCH] = between.distances(arms).min(axis=1)
+        arms = [some[:, part] for part in between.joint_slices]
+        which = segment[k : k + _BATCH]
+        sizes = np.array([near[i].size for i in which])
+        rows = np.repeat(np.arange(len(some)), sizes)
+        gaps = between.pair_gaps(between.ends(arms), rows, np.concatenate([near[i] for i in which]))
+        least[k : k + _BATCH] = np.minimum.reduceat(gaps, np.concatenate(([0], np.cumsum(sizes)[:-1])))
     out: Array = np.minimum.reduceat(least, np.concatenate(([0], np.cumsum(counts)[:-1])))
     return out
 
@@ -205,33 +208,50 @@ def pairs_along(between: RigClearance, spread: Array, at: _Measured, starts: npt
 
 
 class _Measured:
-    """The poses of a path measured so far: each one's pairs' clearances ``gaps`` ``(n_poses, n_pairs)`` and least
-    ``least``, its shapes' ``levers`` ``(n_poses, n_shapes, n_joints)`` and the whole rig's ``whole`` (per joint
-    the greatest lever of either side of any pair, summed) ``(n_poses, n_joints)``; rows not measured are unset."""
+    """The poses of a path measured so far: each one's least clearance ``least``, its shapes' ``levers``
+    ``(n_poses, n_shapes, n_joints)`` and the whole rig's ``whole`` (per joint the greatest lever of either side of
+    any pair, summed) ``(n_poses, n_joints)``, and of those measured with every pair (``full``) each pair's
+    clearance ``gaps`` ``(n_poses, n_pairs)``; rows not measured are unset (``gaps``: nan)."""
 
     def __init__(self, between: RigClearance, poses: Array):
         self.between, self.poses = between, poses
         n = len(poses)
         self.done = np.zeros(n, dtype=bool)
-        self.gaps = np.empty((n, between.pair_shapes[0].size))
+        self.full = np.zeros(n, dtype=bool)
+        self.gaps = np.full((n, between.pair_shapes[0].size), math.nan)
         self.least = np.empty(n)
         self.levers = np.empty((n, *between.motion.shape))
         self.whole = np.empty_like(poses)
 
-    def measure(self, rows: npt.NDArray[np.intp]) -> None:
-        """Measure the poses ``rows`` not measured yet, :data:`_BATCH` at a time."""
+    def measure(self, rows: npt.NDArray[np.intp], *, every_pair: bool = True) -> None:
+        """Measure the poses ``rows`` not measured yet, :data:`_BATCH` at a time; ``every_pair``: each pair's
+        clearance too (else only the least: the pairs that may be the nearest,
+        :meth:`~retarget.rig.clearance.RigClearance.measure`), and for a pose measured before without them, those
+        alone."""
         need = np.unique(rows)
-        need = need[~self.done[need]]
         between = self.between
-        i, j = between.pair_shapes
+        if every_pair:
+            again = need[self.done[need] & ~self.full[need]]
+            for k in range(0, again.size, _BATCH):
+                some = again[k : k + _BATCH]
+                self.gaps[some] = between.distances(self._arms(some))
+            self.full[again] = True
+        need = need[~self.done[need]]
+        i, j = (np.unique(side) for side in between.pair_shapes)  # the shapes either side of any pair
         for k in range(0, need.size, _BATCH):
             some = need[k : k + _BATCH]
-            poses = self.poses[some]
-            arms = {a.name: poses[:, s] for a, s in zip(between.rig.arms, between.joint_slices, strict=True)}
-            gaps, levers = between.measure(arms)
-            self.gaps[some], self.least[some], self.levers[some] = gaps, gaps.min(axis=1), levers
+            gaps, levers = between.measure(self._arms(some), every_pair=every_pair)
+            if every_pair:
+                self.gaps[some], gaps = gaps, gaps.min(axis=1)
+            self.least[some], self.levers[some] = gaps, levers
             self.whole[some] = levers[:, i].max(axis=1) + levers[:, j].max(axis=1)
         self.done[need] = True
+        self.full[need] |= every_pair
+
+    def _arms(self, rows: npt.NDArray[np.intp]) -> dict[str, Array]:
+        """Each arm's part of the poses ``rows``, by arm name (as :class:`RigClearance` takes them)."""
+        poses, between = self.poses[rows], self.between
+        return {a.name: poses[:, s] for a, s in zip(between.rig.arms, between.joint_slices, strict=True)}
 
 
 def whole_falls(whole: Array, whole_spread: Array, dq: Array) -> Array:

@@ -293,7 +293,7 @@ class _RigSource(ClipSlots):
             arm = paths[name]
             if arm.notes and name in models:
                 starts, ends = path[:-1, part], path[1:, part]
-                own[name] = (part, shared_bound(models[name]).prove(starts, ends, arm.notes, arm.index[: len(ends)]))
+                own[name] = shared_bound(models[name]).prove(starts, ends, arm.notes, arm.index[: len(ends)]).lows
         self.proof = RigProof.prove(replay.between, path, own)
 
     def target_at(self, tick: int, t: float) -> TickGoal:

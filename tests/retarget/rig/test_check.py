@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -10,7 +12,7 @@ from retarget.ik.bound import shared_bound
 from retarget.rig import RigPlant, load_rig
 from retarget.rig.check import RigGoalCheck, _fall
 from retarget.rig.clearance import RigClearance
-from retarget.rig.proof import RigProof
+from retarget.rig.proof import RigProof, sample_step
 from tests.helpers import brute_force_min_clearances, sampled_min_clearance
 
 
@@ -184,7 +186,7 @@ def proven_path(rig, plant, between, models, path):
             bound.note(q, model.distances(q))
             if k:
                 index.append(len(notes) - 1)
-        own[a.name] = (part, bound.prove(path[:-1, part], path[1:, part], notes, index))
+        own[a.name] = bound.prove(path[:-1, part], path[1:, part], notes, index).lows
     return RigProof.prove(between, path, own)
 
 
@@ -230,3 +232,64 @@ def test_a_proof_changes_no_decision_and_every_move_it_allows_is_clear(pair):
     assert len(near) >= 5
     for x in near:
         assert sampled_min_clearance(rig, plant.split(x), spacing=0.01) > 0
+
+
+def test_each_verdict_is_that_of_a_fresh_check_from_the_pose_held(pair):
+    """Seeded property: along a walk into the other arm (a 3 cm clearance; a blocked goal followed by a shorter step
+    from the pose held, as the loop brakes), the check allows and blocks each move exactly as a check started at
+    the move's start does (its own models: no shared bounds, no recalled poses), whatever it measured before.  A
+    goal the arms apart block leaves each arm's own check as it was (not to start again)."""
+    rig, plant, models, _ = pair
+    between = RigClearance(rig, clearance=0.03)
+    fresh_models = {a.name: CollisionModel.for_arm(a.arm) for a in rig.arms}
+    rng = np.random.default_rng(43)
+    q = plant.home.copy()
+    check = RigGoalCheck(plant, models, between, q)
+    verdicts = {True: 0, False: 0}
+    kept = 0
+    for _ in range(160):
+        step = rng.normal(0, 0.06, plant.n_joints)
+        step[0], step[6] = step[0] - 0.04, step[6] + 0.04  # the waists drift toward each other
+        for scale in (1.0, 0.3):  # a goal, and when it is blocked a shorter step from the pose held
+            target = np.clip(q + scale * step, plant.lower, plant.upper)
+            fresh = RigGoalCheck(plant, fresh_models, between, q)
+            own = dict(check._checks)
+            allowed = check.allows(q.tolist(), target.tolist())
+            assert allowed == fresh.allows(q.tolist(), target.tolist())
+            verdicts[allowed] += 1
+            if allowed:
+                q = target
+                break
+            if RigGoalCheck(plant, fresh_models, between, q)._segment_apart(q.tolist(), target.tolist()) < 0.03:
+                assert not check._behind and all(check._checks[n] is own[n] for n in own)  # (as it was)
+                kept += 1
+    assert verdicts[True] > 60 and verdicts[False] >= 10 and kept >= 3
+
+
+def test_a_sampled_move_has_the_figure_of_every_pair_sampled(pair):
+    """Seeded property: a move past the other arm that the bounds leave short (from the start, then pair by pair
+    from both ends' clearances) is sampled, and the check's figure is exactly the least of every pair at the same
+    samples (as many as the end's levers ask for) and of the ends, though it measures only the pairs that may be the
+    least; some of these moves' least sample is a pair nearest at neither end (so a screen that kept only the ends'
+    nearest pairs fails)."""
+    rig, plant, models, between = pair
+    rng = np.random.default_rng(47)
+    limit, sampled, elsewhere = between.clearance, 0, 0
+    for _ in range(32):
+        q = rng.uniform(plant.lower, plant.upper) * 0.6
+        q[0], q[6] = -np.pi / 2 + rng.normal(0, 0.3), np.pi / 2 + rng.normal(0, 0.3)  # waists toward each other
+        half = rng.normal(0, 0.3, plant.n_joints)
+        a, b = q - half, q + half
+        check = RigGoalCheck(plant, models, between, a)
+        start, end = check._measured(a), check._measured(b)
+        from_start = float((start[1] - check._falls(start[3], (b - a)[:, None])[:, 0]).min())
+        fall = check._falls(end[3], (a - b)[:, None])[:, 0]
+        if from_start >= limit or end[2] < limit or float((0.5 * (start[1] + end[1] - fall)).min()) >= limit:
+            continue  # proven from the start, refused at its end, or proven from both ends: not sampled
+        sampled += 1
+        s = np.linspace(0.0, 1.0, max(2, math.ceil(float(fall.max()) / sample_step(limit)) + 1))[:, None]
+        every = between.distances(plant.split(a + s * (b - a)))
+        assert check._segment_apart(a.tolist(), b.tolist()) == min(float(every.min()), start[2], end[2])
+        nearest = np.unravel_index(every.argmin(), every.shape)[1]
+        elsewhere += nearest not in (start[1].argmin(), end[1].argmin())
+    assert sampled >= 10 and elsewhere >= 2

@@ -97,3 +97,27 @@ def test_measured_levers_are_the_ends_distances_from_the_joint_axes(pair):
                     assert levers[row + i, joints.start + j] == pytest.approx(want, abs=1e-12), (i, j)
                 assert not levers[row + i, joints.stop :].any() and not levers[row + i, : joints.start].any()
             row += len(shapes.names)
+
+
+@pytest.mark.parametrize("name", ["wx250s-pair", "aloha"])
+def test_some_pairs_and_the_least_are_every_pairs_figures(name):
+    """Seeded property: ``distances`` of some pairs, ``pair_gaps`` of scattered (pose, pair) entries and ``measure``'s
+    least (from only the pairs that may be the nearest) are exactly the figures among all pairs, on poses far apart
+    and with the arms reaching into each other (where many pairs are near: the least's screen must keep the right
+    one)."""
+    rig = load_rig(name)
+    check = RigClearance(rig)
+    rng = np.random.default_rng(31)
+    for spread in (1.0, 0.3):
+        poses = {a.name: rng.uniform(a.arm.lower, a.arm.upper, (60, a.arm.n_joints)) * spread for a in rig.arms}
+        poses["left"][:, 0], poses["right"][:, 0] = -np.pi / 2, np.pi / 2  # waists turned toward each other
+        every, levers = check.measure(poses)
+        least, same_levers = check.measure(poses, every_pair=False)
+        np.testing.assert_array_equal(least, every.min(axis=1))
+        np.testing.assert_array_equal(same_levers, levers)
+        some = rng.choice(len(check.pair_names), 17, replace=False)
+        np.testing.assert_array_equal(check.distances(poses, pairs=some), every[:, some])
+        rows, pairs = rng.integers(0, 60, 200), rng.integers(0, len(check.pair_names), 200)
+        ends = check.ends([poses[n] for n in rig.names])
+        np.testing.assert_array_equal(check.pair_gaps(ends, rows, pairs), every[rows, pairs])
+    assert (every < 0).any()  # (the arms went into each other)

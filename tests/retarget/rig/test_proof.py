@@ -181,3 +181,50 @@ def test_a_close_pass_is_sampled_finely_enough_that_no_dip_between_samples_excee
         assert dense - step / 2 <= figure <= dense + step
         ends_miss += float(at.least.min()) > dense + step
     assert ends_miss >= 1
+
+
+def test_a_close_pass_is_sampled_for_the_pairs_that_may_be_least_with_every_pairs_figure(pair):
+    """Seeded property: ``sampled_along`` measures only the pairs that ``pairs_along`` leaves at or below the least of
+    a segment's ends, and its figure is exactly that of every pair at the same samples (as many as the end's levers
+    ask for), on moves past the other arm near their middle, some of whose least sample is a pair nearest at
+    neither end (so a screen that kept only the ends' nearest pairs fails)."""
+    rig, plant, between = pair
+    rng = np.random.default_rng(37)
+    spread, step = travel_spread(between), sample_step(between.clearance)
+    poses = []
+    for _ in range(16):
+        middle, half = near_the_other_arm(plant, between, rng), rng.normal(0, 0.3, plant.n_joints)
+        poses += [middle - half, middle + half]
+    at = _Measured(between, np.array(poses))
+    at.measure(np.arange(len(poses)))
+    starts = np.arange(0, len(poses), 2)
+    figures = sampled_along(between, spread, at, starts)
+    elsewhere = 0  # moves whose least sample is a pair nearest at neither end
+    for k, start in enumerate(starts):
+        a, b = at.poses[start], at.poses[start + 1]
+        fall = pair_falls(between, spread, at.levers[start + 1][None], (b - a)[None]).max()
+        s = np.linspace(0.0, 1.0, max(2, math.ceil(fall / step) + 1))[:, None]
+        every = between.distances(plant.split(a + s * (b - a)))
+        assert figures[k] == every.min(), k
+        nearest = np.unravel_index(every.argmin(), every.shape)[1]
+        elsewhere += nearest not in (at.gaps[start].argmin(), at.gaps[start + 1].argmin())
+    assert elsewhere >= 2
+
+
+def test_poses_measured_for_their_least_are_measured_again_for_every_pair_when_asked(pair):
+    """``_Measured``: a pose measured for its least alone (the proof's coarse levels) has no pair's clearance until
+    asked for every pair; then each is ``distances``', and its least and levers stay as measured."""
+    rig, plant, between = pair
+    rng = np.random.default_rng(41)
+    poses = rng.uniform(plant.lower, plant.upper, (6, plant.n_joints)) * 0.7
+    at = _Measured(between, poses)
+    at.measure(np.array([0, 2, 4]), every_pair=False)
+    least, levers = at.least[[0, 2, 4]].copy(), at.levers[[0, 2, 4]].copy()
+    assert np.isnan(at.gaps[[0, 2, 4]]).all() and at.done[[0, 2, 4]].all() and not at.full.any()
+    at.measure(np.array([2, 3]))
+    for k in (2, 3):
+        np.testing.assert_array_equal(at.gaps[k], between.distances(plant.split(poses[k])))
+        assert at.least[k] == at.gaps[k].min()
+    np.testing.assert_array_equal(at.least[[0, 2, 4]], least)
+    np.testing.assert_array_equal(at.levers[[0, 2, 4]], levers)
+    assert at.full.tolist() == [False, False, True, True, False, False]
