@@ -17,10 +17,16 @@ simulator was still busy with the previous packet, or while the machine ran some
 arrival (the late work shows as late replies below); on a pty it is when the server read it.  To leave on time the
 serving thread sleeps in ``select`` until :data:`SPIN_S` before the reply is due and waits out the rest on the
 clock, and asks Linux for a 1 ns timer slack (the default 50 us makes every sleep end late; ``prctl``,
-best effort); measured on a 2-core VM: a 1.2 ms ``select`` overshoots by 90 us with the default slack, 40 us with
-1 ns.  :attr:`SimServer.pacing` counts the replies sent and those that left later than
-:data:`sim.pacing.LATE_S` after their time (the simulator did not keep up: a loaded machine, or servos whose Python took
-longer than the wire); ``retarget sim`` prints it when it stops.
+best effort).  Measured on the 2-core VM (Firecracker): a 1 ms ``select`` overshoots by 110 us (median) with the
+default slack, 50-60 us with 1 ns (``time.sleep``, ``poll`` and ``epoll`` alike), and each timed wake-up costs ~35 us
+of CPU; with SPIN_S 100 us the median reply leaves within 1 us of its time, with 40 us 17-20 us late, for no CPU
+measurably saved (the spin is 20-35 us per reply; ``bench/bench_rig.py``).  :attr:`SimServer.pacing` counts the
+replies sent and those that left later than :data:`sim.pacing.LATE_S` after their time, with the median and 99th
+percentile lateness (the simulator did not keep up: a loaded machine, or servos whose Python took longer than the
+wire); ``retarget sim`` prints it when it stops.  When the serving loop owns its process (``serve_forever`` on a
+real clock in the main thread, as ``retarget sim`` runs it), the interpreter's full garbage collections, which
+visit the bus's whole instruction log and came every ~25 000 packets for 20-140 ms, wait for a moment with no
+reply due (:class:`sim.pacing.Collections`).
 
 Lifecycle: ``with PtyServer(bus) as server: print(server.path)`` runs the loop in a thread until the block
 exits; or call :meth:`SimServer.serve_forever` in the foreground with a ``threading.Event`` to stop it.
@@ -46,6 +52,7 @@ import contextlib
 import fcntl
 import logging
 import math
+import operator
 import os
 import select
 import socket
@@ -60,9 +67,10 @@ from typing import Protocol, Self
 
 from retarget.control.clock import Clock, VirtualClock
 from sim.bus import ScheduledReply, SimBus
-from sim.pacing import TIMESPEC, Pacing, fine_timer_slack, kernel_time, timestamps_on
+from sim.pacing import ANCILLARY_SIZE, Collections, Pacing, fine_timer_slack, kernel_time, timestamps_on
 
 log = logging.getLogger(__name__)
+_due = operator.attrgetter("due")
 
 _POLL = 0.05  #: s between checks of the stop flag when idle
 SPIN_S = 100e-6  #: s before a reply is due that the serving thread stops sleeping and waits on the clock
@@ -103,6 +111,7 @@ class SimServer:
         self._thread: threading.Thread | None = None
         self._pending: deque[ScheduledReply] = deque()
         self._wake_r, self._wake_w = os.pipe()  #: close() writes here to end a select at once
+        self._watching: tuple[int | None, list[int]] = (-1, [])  #: (port fd, the fds select waits on) without hooks
         self.hooks: list[ServerHook] = []
 
     def add_hook(self, hook: ServerHook) -> None:
@@ -155,38 +164,57 @@ class SimServer:
         self.close()
 
     def serve_forever(self, stop: threading.Event | None = None) -> None:
-        """Serve until ``stop`` (or :meth:`close`) is set."""
+        """Serve until ``stop`` (or :meth:`close`) is set.
+
+        On a real clock in the main thread (the process is the server's: ``retarget sim``), full garbage collections
+        wait for moments with nothing due (:class:`sim.pacing.Collections`, module docstring).
+        """
         stop = stop or self._stop
         clock = self.bus.clock
         virtual = isinstance(clock, VirtualClock)
         if not virtual:
             fine_timer_slack()
-        while not stop.is_set() and not self._stop.is_set():
-            fd = self._fd()
-            timeout = self._timeout(clock, virtual)
-            waiting = [self._wake_r, *(f for hook in self.hooks for f in hook.fds())]
-            try:
-                readable, _, _ = select.select([fd, *waiting] if fd is not None else waiting, [], [], timeout)
-            except (OSError, ValueError):  # closed under us
-                break
-            try:
-                if fd is not None:
-                    self._serve_once(fd in readable, clock, virtual)
-                for hook in self.hooks:
-                    hook.service(readable, clock.now())
-            except OSError:
-                if self._stop.is_set():  # close() released the pty or socket while this tick was under way
+        own_process = not virtual and threading.current_thread() is threading.main_thread()
+        with Collections(enabled=own_process) as collections:
+            while not stop.is_set() and not self._stop.is_set():
+                fd = self._fd()
+                timeout = self._timeout(clock, virtual)
+                try:
+                    readable, _, _ = select.select(self._watched(fd), [], [], timeout)
+                except (OSError, ValueError):  # closed under us
                     break
-                raise
+                try:
+                    if fd is not None:
+                        self._serve_once(fd in readable, clock, virtual)
+                    for hook in self.hooks:
+                        hook.service(readable, clock.now())
+                except OSError:
+                    if self._stop.is_set():  # close() released the pty or socket while this tick was under way
+                        break
+                    raise
+                if readable:
+                    collections.traffic()
+                if collections.enabled and not self._pending:  # nothing due: a moment for a full collection
+                    collections.idle(clock.now(), quiet=not readable and timeout >= _POLL)
+
+    def _watched(self, fd: int | None) -> list[int]:
+        """The descriptors the loop's select waits on: the port's (``fd``), the wake-up pipe, the hooks' (kept from
+        one call to the next while there are no hooks and ``fd`` is the same)."""
+        if self.hooks:
+            hooked = [self._wake_r, *(f for hook in self.hooks for f in hook.fds())]
+            return hooked if fd is None else [fd, *hooked]
+        if self._watching[0] != fd:
+            self._watching = (fd, [self._wake_r] if fd is None else [fd, self._wake_r])
+        return self._watching[1]
 
     def _timeout(self, clock: Clock, virtual: bool) -> float:
         """How long the next select may wait: until the next hook action is due, or SPIN_S before the next reply
         is (the rest is waited out in :meth:`_serve_once`); at most _POLL."""
         if virtual:
             return 0.0 if self._pending else _POLL
-        due = min((hook.due() for hook in self.hooks), default=math.inf)
-        if self._pending:
-            due = min(due, self._pending[0].due - SPIN_S)
+        due = self._pending[0].due - SPIN_S if self._pending else math.inf
+        for hook in self.hooks:
+            due = min(due, hook.due())
         return min(_POLL, max(0.0, due - clock.now()))
 
     def _serve_once(self, readable: bool, clock: Clock, virtual: bool) -> None:
@@ -197,7 +225,9 @@ class SimServer:
                 self.bus.line_baud = self._line_baud()
                 replies = self.bus.feed(data, None if virtual else self._arrival(clock))
                 if replies:
-                    self._pending = deque(sorted([*self._pending, *replies], key=lambda r: r.due))
+                    self._pending.extend(replies)
+                    if len(self._pending) > 1:
+                        self._pending = deque(sorted(self._pending, key=_due))
         while self._pending:
             due = self._pending[0].due
             if virtual:
@@ -322,7 +352,7 @@ class TcpServer(SimServer):
         self._stamp = None
         try:
             if self._stamped:
-                data, ancillary, _, _ = self._client.recvmsg(4096, socket.CMSG_SPACE(TIMESPEC.size))
+                data, ancillary, _, _ = self._client.recvmsg(4096, ANCILLARY_SIZE)
                 self._stamp = kernel_time(ancillary)
             else:
                 data = self._client.recv(4096)
