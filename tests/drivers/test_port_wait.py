@@ -1,12 +1,16 @@
 """``UrlPortHandler.readPort`` waits for a port with a file descriptor to be readable instead of spinning: the SDK's
 ``rxPacket`` then reads the port a few times per packet, not thousands (the served simulator on a real clock, wire
-model on, at 57600 baud so a ping and its status take 4.2 ms on the wire)."""
+model on, at 57600 baud so a ping and its status take 4.2 ms on the wire).  A ``socket://`` port is read, written
+and drained on its socket, without pyserial's calls."""
 
 from __future__ import annotations
 
+import select
+import socket
 from collections.abc import Callable, Iterator
 
 import pytest
+import serial
 from dynamixel_sdk import COMM_RX_TIMEOUT, COMM_SUCCESS, PacketHandler
 
 import sim
@@ -42,17 +46,15 @@ def served(request: pytest.FixtureRequest) -> Iterator[UrlPortHandler]:
 
 
 def _count_reads(port: UrlPortHandler) -> list[int]:
-    """Spy on the port's ``read``: the returned list grows by one per call."""
+    """Spy on the port's ``readPort`` (what the SDK's ``rxPacket`` calls): the returned list grows by one per call."""
     calls: list[int] = []
-    ser = port.ser
-    assert ser is not None
-    read = ser.read
+    read = port.readPort
 
-    def counted(size: int = 1) -> bytes:
-        calls.append(size)
-        return read(size)
+    def counted(length: int) -> bytes:
+        calls.append(length)
+        return read(length)
 
-    ser.read = counted  # type: ignore[method-assign]
+    port.readPort = counted  # type: ignore[method-assign]
     return calls
 
 
@@ -78,3 +80,59 @@ def test_an_in_process_port_has_no_descriptor_and_reads_as_the_sdk_does() -> Non
             port.closePort()
     finally:
         sim.unregister(url)
+
+
+def _pyserial_calls_fail(port: UrlPortHandler) -> None:
+    """Make the pyserial port's own read, write and drain raise: what still works does without them."""
+    ser = port.ser
+    assert ser is not None
+
+    def refuse(*args: object) -> None:
+        raise AssertionError("pyserial's own call was used")
+
+    for name in ("read", "write", "reset_input_buffer"):
+        setattr(ser, name, refuse)
+
+
+@pytest.fixture
+def raw_socket_port() -> Iterator[tuple[UrlPortHandler, socket.socket]]:
+    """A ``socket://`` port on a loopback peer this test writes and reads itself: (the port, the peer's socket)."""
+    with socket.create_server(("127.0.0.1", 0)) as listener:
+        port = open_port(f"socket://127.0.0.1:{listener.getsockname()[1]}", 1_000_000)
+        peer, _ = listener.accept()
+    try:
+        with peer:
+            yield port, peer
+    finally:
+        port.closePort()
+
+
+def test_a_socket_port_is_written_drained_and_read_on_its_socket(raw_socket_port) -> None:
+    port, peer = raw_socket_port
+    _pyserial_calls_fail(port)
+    assert port.writePort([0xFF, 0xFF, 0xFD, 0x00, 0x01]) == 5
+    assert peer.recv(16) == b"\xff\xff\xfd\x00\x01"
+
+    late = b"\xff\xff\xfd\x00\x02junk" + b"\xff\xff\xfd\x00\x03"  # two late status packets' bytes
+    peer.sendall(late)
+    assert select.select([port._fd], [], [], 5.0)[0]
+    port.clearPort()
+    assert (port.stale_bytes, port.stale_packets) == (len(late), 2)
+    port.setPacketTimeoutMillis(20)
+    assert port.readPort(4) == b""  # drained: nothing until the timeout
+
+    peer.sendall(b"abcdef")
+    port.setPacketTimeoutMillis(2000)
+    assert port.readPort(4) == b"abcd"
+    assert port.readPort(10) == b"ef"  # what is there, as pyserial's read with timeout 0
+
+    peer.close()
+    with pytest.raises(serial.SerialException, match="socket disconnected"):
+        port.readPort(4)
+
+
+@pytest.mark.parametrize("served", [pytest.param(_tcp, id="tcp")], indirect=True)
+def test_the_sdk_pings_over_a_socket_port_without_pyserials_own_calls(served: UrlPortHandler) -> None:
+    _pyserial_calls_fail(served)
+    model, result, error = PacketHandler(2.0).ping(served, 1)
+    assert (result, error) == (COMM_SUCCESS, 0) and model > 0
