@@ -17,15 +17,24 @@ inverse.  The target (issue 19): the rig's rate at least TARGET_RATIO of one bus
    the two modes are the same calls in the same cyclic order, only cut into ticks at another place, so their rates
    differ only by noise (an earlier version measured them seconds apart and read the load's drift as a gap: 0.92
    vs 0.79).  Also: the share of the wire-limited rate (3.) reached; the fastest tenth of the inline ticks (the
-   ticks the machine's other load disturbed least); the mean tick, the CPU per tick of the driver (this process)
-   and of each arm's simulator process, and the cores they kept busy; how punctually each simulator sent its
-   replies (``SimServer.pacing``; late ones: the machine did not keep real time).  What limits 1. here: CPU and
-   wake-ups.  Each arm's simulator process takes ~0.6 ms per tick (~0.35 ms the servos' Python, the rest its server
-   loop and the last 100 us before each reply waited out on the clock), the driver ~0.25 ms per arm, so each tick
-   starts with three runnable processes on the 2-core machine.  Measured on a quiet one (load average 0.9): one arm
-   91 % of the wire-limited rate, ratio 0.89 inline and 0.82 pipelined, the fastest tenth 0.95; on a loaded one
-   (1.3-3.3) 0.80-0.88.  Without the last 100 us waited out on the clock (``sim.server.SPIN_S`` 0) both rates fall
-   (one arm 570 ticks/s instead of 618) and the ratio does not rise.
+   ticks the machine's other load disturbed least); the mean tick, the CPU per tick of the driver (this process) and
+   of each arm's simulator process, and the cores they kept busy; how punctually each simulator sent its replies
+   (``SimServer.pacing``: how many left later than 0.5 ms, i.e. the machine did not keep real time, the median and
+   99th percentile lateness, the worst).  What limits 1. here: CPU and the scheduler.  Per tick each arm's simulator
+   process takes ~0.7 ms of CPU, ~0.45 of it the servos' Python (``SimBus.feed``), the rest two wake-ups (the
+   instruction; the timer 100 us before the reply, ~35 us of CPU each on this VM), the spin, the send and the loop;
+   the driver ~0.25 ms per arm (its SYNC_WRITE ~0.08, the read request ~0.06, the collect ~0.11).  So each tick starts
+   with three runnable processes on the 2 cores, and a rig tick is one arm's plus the later of the first arm's
+   collect and the second arm's write, plus what the driver loses when a simulator its write woke takes its core
+   (traced: the second arm's SYNC_WRITE reached its simulator 0.2-0.4 ms after the first's instead of ~0.1 ms).
+   Measured with the other workers' load (load average 1.0-2.1, 6 runs each, medians): ratio 0.895 inline, 0.885
+   pipelined (0.81-0.92; 2 of 6 runs >= 0.90), fastest tenth 0.945; before the simulator's garbage collections waited
+   for idle moments and the driver used its socket directly: 0.895, 0.83 (0.77-0.89, none >= 0.90), 0.885; CPU per
+   rig tick driver 0.64 -> 0.50 ms, simulators 1.52 -> 1.37 ms; replies later than 0.5 ms 0.4-8.5 % -> 0.2-0.8 %, the
+   worst 18-30 ms (a full collection) -> 2-8 ms.  Tried and left out: ``SPIN_S`` 40 us (median reply 17-20 us late, no
+   CPU saved; 0 was worse still); the simulator yielding its core (``sched_yield``) on packets nobody answers (inline
+   ratio +0.02-0.10, pipelined unchanged at moderate load, one arm's replies more often late); SCHED_BATCH simulators
+   (best blocks 0.90-0.93, but 42-48 % of replies late under the other workers' load).
 2. In process, for comparison (``sim://``, the figure checked before): both simulated buses run in the driver's
    own interpreter, so the simulated servos' Python (~0.37 ms per arm per tick, 4.) competes with the driver for the
    GIL and the rig's ticks pay for both arms' simulators in turn; that measures the simulator more than the bus,
@@ -38,7 +47,7 @@ inverse.  The target (issue 19): the rig's rate at least TARGET_RATIO of one bus
    call to each arm's worker thread and back costs (RigBus's workers, used for connect, close and set_torque)
    against a ThreadPoolExecutor.
 
-Run: ``python bench/bench_rig.py [--ticks N] [--rounds R] [--transport tcp|pty]`` (about 30 s with the defaults).
+Run: ``python bench/bench_rig.py [--ticks N] [--rounds R] [--transport tcp|pty]`` (about 25 s with the defaults).
 Exit status 1 when the default mode's ratio in 1. misses TARGET_RATIO.
 """
 
