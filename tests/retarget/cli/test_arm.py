@@ -100,8 +100,8 @@ def test_urdf_with_tip(capsys, tmp_path):
 
 
 def test_a_bad_mapping_table_is_caught_by_retarget_arm(tmp_path, capsys):
-    text = (REPO / "config" / "arms" / "koch.toml").read_text() + '\n[mapping]\narm_scale = "big"\n'
-    path = tmp_path / "koch_bad.toml"
+    text = (REPO / "config" / "arms" / "px100.toml").read_text() + '\n[mapping]\narm_scale = "big"\n'  # no [mapping]
+    path = tmp_path / "px100_bad.toml"
     path.write_text(text)
     assert main(["arm", str(path)]) == 2
     err = capsys.readouterr().err
