@@ -1,7 +1,8 @@
 """Protocol 2.0 transactions on dynamixel-sdk with bounded retries and errors that name the servos.
 
-:class:`Link` wraps one open port and the SDK's ``Protocol2PacketHandler``.  Every transaction is the SDK's
-own packet code; what this module adds is what the SDK leaves to its callers:
+:class:`Link` wraps one open port and the SDK's ``Protocol2PacketHandler`` (:class:`drivers.packets.PacketHandler`:
+its CRC and byte stuffing faster, the same bytes).  Every transaction is the SDK's own packet code; what this module
+adds is what the SDK leaves to its callers:
 
 * a failed transaction is retried ``retries`` times, then raised as a :class:`~retarget.errors.BusError`
   naming the servo IDs that did not answer (never a value of 0 for a failed read);
@@ -26,7 +27,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
-from dynamixel_sdk import COMM_SUCCESS, PacketHandler
+from dynamixel_sdk import COMM_SUCCESS
 from dynamixel_sdk.robotis_def import (
     COMM_NOT_AVAILABLE,
     COMM_PORT_BUSY,
@@ -38,6 +39,7 @@ from dynamixel_sdk.robotis_def import (
 )
 
 from drivers.control_table import ALERT_BIT, BROADCAST_ID, Instruction, Register, StatusError
+from drivers.packets import PacketHandler
 from drivers.port import PortHandler
 from retarget.errors import BusError
 
@@ -131,7 +133,7 @@ class Link:
         if retries < 0:
             raise ValueError(f"Expected retries >= 0, got {retries}")
         self.port = port
-        self.ph = PacketHandler(2.0)
+        self.ph = PacketHandler()  #: the SDK's Protocol 2.0 handler, its CRC and stuffing faster (drivers.packets)
         self.retries = retries
         self.retry_count = 0  #: transactions repeated after a failure
         self.error_count = 0  #: failures raised after the retries ran out
@@ -388,6 +390,7 @@ class Link:
             return None
         replies: dict[int, StatusPacket] = {}
         alerts = self.alerts
+        new = tuple.__new__  # StatusPacket(...) without the NamedTuple's Python-level __new__
         # slots of ERR ID DATA[length + pad] CRC16 (the last CRC is the packet's); inline, on the tick path
         for i in range(0, slot * len(ids), slot):
             dxl_id = raw[i + 1]
@@ -396,7 +399,7 @@ class Link:
             error = raw[i]
             if error & ALERT_BIT:
                 alerts.add(dxl_id)
-            replies[dxl_id] = StatusPacket(dxl_id, error, bytes(raw[i + 2 : i + 2 + length]))
+            replies[dxl_id] = new(StatusPacket, (dxl_id, error, bytes(raw[i + 2 : i + 2 + length])))
         return replies
 
     def _send_read(self, read: GroupRead, fast: bool) -> bool:
@@ -448,7 +451,7 @@ class Link:
         retries of :meth:`group_read`).  Nothing else may use the link in between: the SDK keeps the port
         marked busy until the replies are read (a Ctrl-C there is undone by :meth:`release`).
         """
-        return read._replace(sent=self._send_read(read, read.fast))
+        return GroupRead._make((*read[:-1], self._send_read(read, read.fast)))  # read._replace(sent=...), faster
 
     def drain(self, read: GroupRead) -> None:
         """Wait for the status packets of ``read`` (sent, replies not taken) and drop them: no retries, no errors.

@@ -157,12 +157,16 @@ class UrlPortHandler(PortHandler):
     * ``readPort`` waits for a port with a file descriptor to be readable instead of spinning (see it);
     * on a ``socket://`` port, ``clearPort``, ``readPort`` and ``writePort`` use the socket directly: pyserial's
       calls add a ``select`` to every read, write and drain (three per call of ``clearPort``, two per read, one per
-      write; measured on the 2-core VM, ``bench/bench_rig.py``'s tick: 280 -> 257 us of driver CPU per arm).
+      write; measured on the 2-core VM, ``bench/bench_rig.py``'s tick: 280 -> 257 us of driver CPU per arm).  A read
+      takes what the socket has (the SDK asks a status packet's first 11 bytes, then the rest) and hands out the
+      bytes beyond what was asked on the next reads, without a ``select`` and a ``recv`` each: the same bytes in the
+      same order; ``clearPort`` drops them with the socket's.
     """
 
     stale_packets = 0  #: late status packets dropped before an instruction (a partial one counts as one)
     _fd: int | None = None  #: the open port's file descriptor, for readPort's wait; None: it has none
     _socket: socket.socket | None = None  #: a ``socket://`` port's socket, read and written directly
+    _held = b""  #: bytes a read of the socket took beyond what it was asked, for the next reads
     stale_bytes = 0  #: the bytes they had
 
     def clearPort(self) -> None:  # noqa: N802 - the SDK's name
@@ -170,7 +174,10 @@ class UrlPortHandler(PortHandler):
         if ser is None:
             return
         if self._socket is not None:
-            late = b"".join(iter(partial(_recv, self._socket, 4096), b""))
+            late, self._held = self._held, b""
+            # anything waiting (bytes, or the peer's end)?  A select costs a third of a recv that fails (EAGAIN)
+            if select.select([self._socket], [], [], 0)[0]:
+                late += b"".join(iter(partial(_recv, self._socket, 4096), b""))
         else:
             waiting = ser.in_waiting
             late = ser.read(waiting) if waiting else b""
@@ -222,14 +229,22 @@ class UrlPortHandler(PortHandler):
         descriptor (the in-process ``sim://``, whose reads model the wire themselves) are read as the SDK does.
         """
         ser: Any = self.ser
+        held = self._held
+        if held and length > 0:  # the socket's bytes the last read took beyond what it was asked
+            self._held = held[length:]
+            return held[:length]
         if self._fd is not None:
             left = min(self.packet_timeout, self.packet_timeout - self.getTimeSinceStart())  # ms
             if left > 0:
                 select.select([self._fd], [], [], left / 1000.0)
         if self._socket is not None:
-            return _recv(self._socket, length)
-        data: bytes = ser.read(length)
-        return data
+            data = _recv(self._socket, 4096 if length > 0 else length)  # (the SDK never asks for nothing)
+            if len(data) > length:
+                self._held = data[length:]
+                return data[:length]
+            return data
+        out: bytes = ser.read(length)
+        return out
 
     def setupPort(self, cflag_baud: int) -> bool:  # noqa: N802 - the SDK's name
         if self.is_open:
@@ -249,6 +264,7 @@ class UrlPortHandler(PortHandler):
         _no_delay(self.ser)
         self._fd = _file_descriptor(self.ser)
         self._socket = _plain_socket(self.ser)
+        self._held = b""
         self.is_open = True
         self.ser.reset_input_buffer()
         self.tx_time_per_byte = (1000.0 / self.baudrate) * 10.0
@@ -259,6 +275,7 @@ class UrlPortHandler(PortHandler):
             self.ser.close()
         self._fd = None
         self._socket = None
+        self._held = b""
         self.is_open = False
         self.is_using = False
 

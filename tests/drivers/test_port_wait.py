@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import select
 import socket
+import time
 from collections.abc import Callable, Iterator
 
 import pytest
@@ -129,6 +130,35 @@ def test_a_socket_port_is_written_drained_and_read_on_its_socket(raw_socket_port
     peer.close()
     with pytest.raises(serial.SerialException, match="socket disconnected"):
         port.readPort(4)
+
+
+def test_a_socket_read_hands_out_what_it_took_beyond_the_ask_on_the_next_reads(raw_socket_port) -> None:
+    port, peer = raw_socket_port
+    _pyserial_calls_fail(port)
+    port.setPacketTimeoutMillis(2000)
+    peer.sendall(bytes(range(20)))
+    assert select.select([port._fd], [], [], 5.0)[0]
+    time.sleep(0.05)  # all 20 bytes in
+    assert port.readPort(4) == bytes(range(4))
+    peer.close()  # from here a read of the socket raises: the next reads are of what the first one took
+    assert port.readPort(10) == bytes(range(4, 14))
+    assert port.readPort(10) == bytes(range(14, 20))
+    with pytest.raises(serial.SerialException, match="socket disconnected"):
+        port.readPort(4)
+
+
+def test_the_bytes_a_read_held_back_are_late_for_the_next_instruction(raw_socket_port) -> None:
+    port, peer = raw_socket_port
+    late = b"\xff\xff\xfd\x00\x02junk" + b"\xff\xff\xfd\x00\x03"
+    peer.sendall(late)
+    port.setPacketTimeoutMillis(2000)
+    assert select.select([port._fd], [], [], 5.0)[0]
+    time.sleep(0.05)
+    assert port.readPort(3) == late[:3]
+    port.clearPort()
+    assert (port.stale_bytes, port.stale_packets) == (len(late) - 3, 1)  # the rest: one header left in it
+    port.setPacketTimeoutMillis(20)
+    assert port.readPort(4) == b""
 
 
 @pytest.mark.parametrize("served", [pytest.param(_tcp, id="tcp")], indirect=True)
