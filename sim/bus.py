@@ -38,11 +38,11 @@ from __future__ import annotations
 
 import logging
 import math
+import operator
 import threading
 from collections import deque
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 from drivers.control_table import (
     BROADCAST_ID,
@@ -63,8 +63,15 @@ from sim.protocol import Packet, PacketParser, build_fast_read_status, build_sta
 from sim.servo import SimServo
 
 log = logging.getLogger(__name__)
+_by_id = operator.attrgetter("id")
+_NO_FAULTS = ReplyFaults()  #: a fast read's reply faults when no slot has a delay (drop and corrupt are per slot)
 
 _READ_INSTRUCTIONS = frozenset({Instruction.READ})
+# the instructions a broadcast dispatches on, as constants (reading an Enum member costs ~0.1 us each time)
+_PING, _SYNC_WRITE, _BULK_WRITE = Instruction.PING, Instruction.SYNC_WRITE, Instruction.BULK_WRITE
+_SYNC_READS = frozenset({Instruction.SYNC_READ, Instruction.FAST_SYNC_READ})
+_BULK_READS = frozenset({Instruction.BULK_READ, Instruction.FAST_BULK_READ})
+_FAST_READS = frozenset({Instruction.FAST_SYNC_READ, Instruction.FAST_BULK_READ})
 _ALWAYS_BROADCAST_SILENT = frozenset(
     {
         Instruction.READ,
@@ -78,12 +85,12 @@ _ALWAYS_BROADCAST_SILENT = frozenset(
 )
 
 
-@dataclass(frozen=True)
-class ScheduledReply:
+class ScheduledReply(NamedTuple):
     """A status packet on the wire: its bytes, the servo that sent it, the clock time its last byte arrives.
 
     The transports hand ``data`` to the host once the bus clock reaches ``due`` (seconds on the bus clock).
-    ``drivers.comm.StatusPacket`` is the host's side: the same packet decoded.
+    ``drivers.comm.StatusPacket`` is the host's side: the same packet decoded.  Immutable (a NamedTuple: one per
+    reply, on the tick path).
     """
 
     due: float
@@ -104,9 +111,10 @@ class _Sender(Protocol):
     def return_delay(self) -> float: ...
 
 
-@dataclass(frozen=True)
-class LogEntry:
-    """One instruction the bus received: clock time, target ID, instruction byte, unstuffed parameters."""
+class LogEntry(NamedTuple):
+    """One instruction the bus received: clock time, target ID, instruction byte, unstuffed parameters.
+
+    Immutable (a NamedTuple: one per instruction, on the tick path)."""
 
     t: float
     id: int
@@ -355,18 +363,17 @@ class SimBus:
         return cursor
 
     def _listeners(self, t: float) -> list[SimServo]:
-        return [s for s in self._servos if s.listening(t) and (self.line_baud is None or s.baud == self.line_baud)]
+        line = self.line_baud
+        return [s for s in self._servos if s.listening(t) and (line is None or s.baud == line)]
 
     def _dispatch(self, pkt: Packet, t: float) -> list[tuple[_Sender, bytes]]:
         listeners = self._listeners(t)
         for s in listeners:
-            s.update(t)  # first: a Bus Watchdog due before this packet trips on time
-            if pkt.crc_ok and s.hears(pkt.id):
-                s.instruction_received(t)
+            s.packet_at(t, pkt.id, pkt.crc_ok)  # first: a Bus Watchdog due before this packet trips on time
         if pkt.id == BROADCAST_ID:
             if not pkt.crc_ok:
                 return []
-            return self._broadcast(pkt, sorted(listeners, key=lambda s: s.id), t)
+            return self._broadcast(pkt, sorted(listeners, key=_by_id), t)
         if pkt.id > MAX_ID:
             return []
         target = next((s for s in listeners if s.id == pkt.id), None)
@@ -421,7 +428,7 @@ class SimBus:
 
     def _broadcast(self, pkt: Packet, servos: list[SimServo], t: float) -> list[tuple[_Sender, bytes]]:
         inst, p = pkt.instruction, pkt.params
-        if inst == Instruction.PING:
+        if inst == _PING:
             return [(s, build_status(s.id, s.error_byte(StatusError.NONE), s.ping())) for s in servos]
         if inst in _ALWAYS_BROADCAST_SILENT:
             if inst == Instruction.FACTORY_RESET and p[:1] == bytes((FactoryReset.ALL,)):
@@ -431,23 +438,23 @@ class SimBus:
                 if reboot:
                     s.reboot()
             return []
-        if inst == Instruction.SYNC_WRITE:
+        if inst == _SYNC_WRITE:
             return self._sync_write(p, servos)
-        if inst == Instruction.BULK_WRITE:
+        if inst == _BULK_WRITE:
             return self._bulk_write(p, servos)
         by_id = {s.id: s for s in servos}
-        if inst in (Instruction.SYNC_READ, Instruction.FAST_SYNC_READ):
+        if inst in _SYNC_READS:
             if len(p) < 5:
                 return []
             address, length = _u16(p, 0), _u16(p, 2)
             requests = [(i, address, length) for i in p[4:]]
-        elif inst in (Instruction.BULK_READ, Instruction.FAST_BULK_READ):
+        elif inst in _BULK_READS:
             if len(p) < 5 or len(p) % 5:
                 return []
             requests = [(p[k], _u16(p, k + 1), _u16(p, k + 3)) for k in range(0, len(p), 5)]
         else:
             return []  # unknown broadcast instruction: nobody answers
-        if inst in (Instruction.FAST_SYNC_READ, Instruction.FAST_BULK_READ):
+        if inst in _FAST_READS:
             return self._fast_read(requests, by_id)
         out: list[tuple[_Sender, bytes]] = []
         for dxl_id, address, length in requests:
@@ -499,11 +506,18 @@ class SimBus:
         full_slots = slots + [(0, dxl_id, bytes(length)) for dxl_id, _, length in requests[len(slots) :]]
         packet = build_fast_read_status(full_slots)
         cut = 8 + sum(len(d) + 4 for _, _, d in slots)
-        f = [self.faults.for_servo(s.id) for s in present]
+        faults = self.faults
+        if faults.servos:
+            f = [faults.for_servo(dxl_id) for _, dxl_id, _ in slots]
+            faulty = not all(x.drop <= 0.0 and x.corrupt <= 0.0 for x in f)  # else no draws, nothing to cut or flip
+            delay = max(x.delay for x in f)
+        else:  # the bus's faults for every slot
+            f = [faults.bus] * len(slots)
+            faulty = not (faults.bus.drop <= 0.0 and faults.bus.corrupt <= 0.0)
+            delay = faults.bus.delay
         # faults per slot: a dropped slot ends the packet there; a corrupt slot flips its CRC byte
         end = cut
         offset = 8
-        faulty = not all(x.drop <= 0.0 and x.corrupt <= 0.0 for x in f)  # else no draws, nothing to cut or flip
         for k, (_, _, data) in enumerate(slots if faulty else ()):
             slot_end = offset + len(data) + 4
             if self.faults.roll(f[k].drop):
@@ -515,8 +529,7 @@ class SimBus:
         if end <= 8:
             return []
         # the packet leaves as one stream; attribute it to the first servo (its return delay starts it)
-        delay = max(x.delay for x in f)
-        return [(_FastSender(present[0], ReplyFaults(delay=delay)), packet[:end])]
+        return [(_FastSender(present[0], ReplyFaults(delay=delay) if delay else _NO_FAULTS), packet[:end])]
 
 
 class _FastSender:
@@ -531,8 +544,9 @@ class _FastSender:
 def _write_slots(servos: list[SimServo], slots: dict[int, tuple[int, bytes]]) -> None:
     """SYNC/BULK WRITE: each servo writes the slot for its ID, else (as a shadow, RAM only) its Secondary ID's."""
     for s in servos:
-        if s.id in slots:
-            s.write(*slots[s.id])
+        slot = slots.get(s.id)
+        if slot is not None:
+            s.write(*slot)
         elif s.secondary_id in slots:
             address, data = slots[s.secondary_id]
             if address >= EEPROM_END:  # the EEPROM area cannot be changed through a Secondary ID (sim.rules)

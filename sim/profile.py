@@ -19,7 +19,6 @@ later time, so a read after a minute of virtual time costs the same as a read af
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import NamedTuple
 
 
@@ -33,9 +32,10 @@ class Segment(NamedTuple):
     duration: float  #: s; math.inf for the last segment of a velocity-mode ramp
 
 
-@dataclass(frozen=True)
-class Trajectory:
+class Trajectory(NamedTuple):
     """A planned motion: segments back to back, then rest at ``end_position`` (unless the last never ends).
+
+    Immutable (a NamedTuple: every goal a servo takes plans one).
 
     >>> move = velocity_profile(0.0, 0.0, 0.0, goal=100.0, vmax=1000.0, accel=10_000.0)
     >>> move.shape, round(move.t_end, 3)  # a triangle (Moving Status bits 4-5 = 2), 0.2 s long
@@ -57,12 +57,12 @@ class Trajectory:
 
     def state(self, t: float) -> tuple[float, float, float]:
         """``(position, velocity, acceleration)`` at time ``t``."""
-        for seg in self.segments:
-            if t < seg.t0:
-                return seg.p0, seg.v0, 0.0
-            dt = t - seg.t0
-            if dt <= seg.duration:
-                return seg.p0 + seg.v0 * dt + 0.5 * seg.a * dt * dt, seg.v0 + seg.a * dt, seg.a
+        for t0, p0, v0, a, duration in self.segments:
+            if t < t0:
+                return p0, v0, 0.0
+            dt = t - t0
+            if dt <= duration:
+                return p0 + v0 * dt + 0.5 * a * dt * dt, v0 + a * dt, a
         return self.end_position, 0.0, 0.0
 
     def done(self, t: float) -> bool:
@@ -73,10 +73,15 @@ def rest(position: float) -> Trajectory:
     return Trajectory((), float(position))
 
 
+def _segment(values: tuple[float, float, float, float, float]) -> Segment:
+    """``Segment(*values)`` without the NamedTuple's Python-level ``__new__`` (a move plans two or three)."""
+    return tuple.__new__(Segment, values)
+
+
 def _append(segs: list[Segment], t: float, p: float, v: float, a: float, d: float) -> tuple[float, float, float]:
     """Add a segment; return the (t, p, v) at its end."""
     if d > 0:
-        segs.append(Segment(t, p, v, a, d))
+        segs.append(_segment((t, p, v, a, d)))
     return t + d, p + v * d + 0.5 * a * d * d, v + a * d
 
 
@@ -112,11 +117,16 @@ def velocity_profile(t0: float, p0: float, v0: float, goal: float, vmax: float, 
             t, p, v = _append(segs, t, p, s * vmax, 0.0, max(cruise, 0.0) / vmax)
             _append(segs, t, p, s * vmax, -s * accel, t3)
             shape = 3
-        else:
-            t, p, v = _append(segs, t, p, v, s * accel, (peak - u) / accel)
-            _append(segs, t, p, s * peak, -s * accel, peak / accel)
+        else:  # a triangle (every tick's small step): _append's arithmetic and _segment, inline
+            a, duration = s * accel, (peak - u) / accel
+            if duration > 0:
+                segs.append(tuple.__new__(Segment, (t, p, v, a, duration)))
+            t, p = t + duration, p + v * duration + 0.5 * a * duration * duration
+            duration = peak / accel
+            if duration > 0:
+                segs.append(tuple.__new__(Segment, (t, p, s * peak, -s * accel, duration)))
             shape = 2
-        return Trajectory(tuple(segs), float(goal), shape if segs else 0)
+        return tuple.__new__(Trajectory, (tuple(segs), float(goal), shape if segs else 0))  # Trajectory(...), faster
     raise AssertionError("velocity_profile did not converge")  # pragma: no cover
 
 

@@ -34,7 +34,8 @@ every servo to each packet's time).  The Present items' bytes are computed only 
 (a READ, a sync/bulk read, :meth:`SimServo.get`, :attr:`SimServo.memory`), for the state at the last update: the
 bytes an eager computation on every update would have stored, at a fraction of the cost (a bus transaction
 updates each servo several times and reads it at most once; ``tests/sim/test_replies_golden.py`` holds the replies
-to their values before this was lazy).
+to their values before this was lazy).  A read of Present Position alone (the driver's position read, every tick)
+computes that item only; ``tests/sim/test_fast_paths.py`` holds it to the whole block's bytes.
 """
 
 from __future__ import annotations
@@ -51,6 +52,7 @@ from drivers.control_table import (
     BAUD_RATES,
     BROADCAST_ID,
     EEPROM_END,
+    MODELS,
     PULSES_PER_REV,
     RETURN_DELAY_UNIT_S,
     RPM2_PER_ACCEL_UNIT,
@@ -140,9 +142,26 @@ _REVERSE_BIT = int(DriveMode.REVERSE)  #: Drive Mode bit 0, as an int (an IntFla
 _TIME_BASED_BIT = int(DriveMode.TIME_BASED_PROFILE)  #: Drive Mode bit 2
 _CURRENT_BASED_POSITION = int(OperatingMode.CURRENT_BASED_POSITION)
 _PWM_MODE = int(OperatingMode.PWM)
+_NONE = StatusError.NONE  #: as a constant: reading an Enum member costs ~0.1 us, and every read and write answers it
 
 #: how to read a register's value from memory: ``(register_struct, address)``
 _Reader = tuple[struct.Struct, int]
+
+
+def _common_reader(name: str) -> _Reader:
+    """The reader of item ``name``, the same on every model (address, size and sign; ImportError otherwise)."""
+    regs = {(r.address, r.size, r.signed) for m in MODELS.values() if (r := m.registers.get(name)) is not None}
+    st = register_struct(common_register(name))
+    if len(regs) != 1 or st is None:  # pragma: no cover - the tables say otherwise
+        raise ImportError(f"Expected {name!r} alike on every model, got (address, size, signed) {sorted(regs)}")
+    return st, common_register(name).address
+
+
+# what planning a move reads (every X model has these items, alike): read straight from memory, on every goal
+_GOAL_POSITION_ITEM = _common_reader("Goal Position")
+_VELOCITY_LIMIT_ITEM = _common_reader("Velocity Limit")
+_PROFILE_VELOCITY_ITEM = _common_reader("Profile Velocity")
+_PROFILE_ACCELERATION_ITEM = _common_reader("Profile Acceleration")
 _READERS: dict[int, tuple[Mapping[str, Register], dict[str, _Reader]]] = {}
 
 
@@ -262,6 +281,13 @@ class SimServo(WriteRules):
         The bus calls this after bringing the servo up to ``t`` (so a watchdog due before ``t`` has tripped).
         """
         self._watchdog.packet(t)
+
+    def packet_at(self, t: float, dxl_id: int, crc_ok: bool) -> None:
+        """An instruction packet for ``dxl_id`` is on the wire at clock time ``t`` (its CRC good or not): brought up to
+        ``t`` (a Bus Watchdog due before then trips on time), then :meth:`instruction_received` when it is its own."""
+        self.update(t)
+        if crc_ok and (dxl_id == BROADCAST_ID or dxl_id == self._mem[_ID] or dxl_id == self.secondary_id):
+            self._watchdog.packet(t)
 
     @property
     def torque(self) -> bool:
@@ -470,15 +496,18 @@ class SimServo(WriteRules):
     def _vmax(self) -> float:
         """Pulses/s cap: Velocity Limit and the no-load speed."""
         no_load = self._no_load
-        limit = self._get("Velocity Limit") * PULSES_PER_S_PER_VELOCITY_UNIT
+        st, address = _VELOCITY_LIMIT_ITEM
+        limit = st.unpack_from(self._mem, address)[0] * PULSES_PER_S_PER_VELOCITY_UNIT
         return min(no_load, limit) if limit > 0 else no_load
 
     def _plan_goal(self) -> None:
         now = self._t
         p, v, _ = self._state
-        goal = self._actual_from_present(self._get("Goal Position"))
+        mem = self._mem
+        goal = self._actual_from_present(_GOAL_POSITION_ITEM[0].unpack_from(mem, _GOAL_POSITION_ITEM[1])[0])
         vmax = self._vmax()
-        pv, pa = self._get("Profile Velocity"), self._get("Profile Acceleration")
+        pv = _PROFILE_VELOCITY_ITEM[0].unpack_from(mem, _PROFILE_VELOCITY_ITEM[1])[0]
+        pa = _PROFILE_ACCELERATION_ITEM[0].unpack_from(mem, _PROFILE_ACCELERATION_ITEM[1])[0]
         if self._mem[_DRIVE_MODE] & _TIME_BASED_BIT:
             self._trajectory = time_profile(now, p, goal, pv / 1000.0, pa / 1000.0, vmax)
         else:
@@ -550,13 +579,19 @@ class SimServo(WriteRules):
         The Present items' bytes are computed when something reads them (:meth:`_compute_pending`), from the state
         as it stands at ``now``: the same bytes, without the cost on the many updates nothing reads after.
         """
-        now = max(self.clock.now() if now is None else float(now), self._t)
+        now = self.clock.now() if now is None else float(now)
+        if now < self._t:
+            now = self._t
         mem = self._mem
         if self._scheduled_errors or (mem[_TORQUE_ENABLE] and mem[_BUS_WATCHDOG]):
             self._run_due_events(now)
         if now == self._fresh:
             return  # nothing moved or changed since the last refresh
-        self._advance(now)
+        if mem[_TORQUE_ENABLE] and self._obstacle is None:  # _advance's first case, inline (every packet, every servo)
+            self._state = self._trajectory.state(now)
+            self._t = now
+        else:
+            self._advance(now)
         if self._indirect_used:
             self._refresh_present(now)
         else:  # _refresh_present's lazy branch, inline: the bus updates every servo on every packet
@@ -652,16 +687,20 @@ class SimServo(WriteRules):
             at, self._pending = self._pending, None
             self._compute_present(at)
 
+    def _present(self, p: float) -> tuple[float, int]:
+        """(Present Position unrounded, the item's value) of the actual position ``p`` (pulses)."""
+        present = (PULSES_PER_REV - p if self._mem[_DRIVE_MODE] & _REVERSE_BIT else p) + self._homing()
+        return present, max(-(2**31), min(2**31 - 1, round(present)))
+
     def _compute_present(self, now: float) -> None:
         """Store the Present items, Realtime Tick to Present Temperature, for the state at clock time ``now``."""
         mem = self._mem
         p, v, a = self._state
         torque = mem[_TORQUE_ENABLE]
         sign = -1.0 if mem[_DRIVE_MODE] & _REVERSE_BIT else 1.0
-        present = (PULSES_PER_REV - p if sign < 0 else p) + self._homing()
+        present, position = self._present(p)
         moving_profile = bool(torque) and not self._trajectory.done(now)
         velocity_units = round(sign * v / PULSES_PER_S_PER_VELOCITY_UNIT)
-        position = max(-(2**31), min(2**31 - 1, round(present)))
         threshold = _I32.unpack_from(mem, _MOVING_THRESHOLD)[0]
         moving = 1 if moving_profile or abs(velocity_units) > threshold else 0
         goal = _I32.unpack_from(mem, _GOAL_POSITION)[0]
@@ -711,14 +750,23 @@ class SimServo(WriteRules):
         return bytes(self._mem[_MODEL_NUMBER : _MODEL_NUMBER + 2]) + bytes((self._mem[_FIRMWARE_VERSION],))
 
     def read(self, address: int, length: int) -> tuple[int, bytes]:
-        """READ: ``(error, data)``; ``data`` is empty on error."""
+        """READ: ``(error, data)``; ``data`` is empty on error.
+
+        A read of Present Position alone (the tick's position read) computes that item only: the other Present
+        items stay due (:meth:`_compute_pending`), and are the bytes they would have been when something reads them.
+        """
         self.update()
-        self._compute_pending()
+        if self._pending is not None:
+            if _PRESENT_POSITION <= address and address + length <= _PRESENT_POSITION + 4:
+                # Present Position alone, as _compute_present stores it; the other Present items stay due
+                _I32.pack_into(self._mem, _PRESENT_POSITION, self._present(self._state[0])[1])
+            else:
+                self._compute_pending()
         if length <= 0:
             return StatusError.DATA_LENGTH, b""
         if address < 0 or address + length > len(self._mem):
             return StatusError.ACCESS, b""
-        return StatusError.NONE, bytes(self._mem[address : address + length])
+        return _NONE, bytes(self._mem[address : address + length])
 
     def check_write(self, address: int, data: bytes) -> int:
         """The error a WRITE of ``data`` at ``address`` would answer (0 if it would succeed), changing nothing."""
@@ -730,11 +778,12 @@ class SimServo(WriteRules):
         """WRITE: validate every covered item, then store all and apply side effects; the error number."""
         self.update()
         data = bytes(data)
-        error, regs = self._validate(address, data)
+        # _validate's items alone while no Indirect Data is in use (the targets' rules are its own part)
+        error, regs = self._validate(address, data) if self._indirect_used else self._validate_items(address, data)
         if error:
             return error
         self._apply(address, data, regs)
-        return StatusError.NONE
+        return _NONE
 
     def reg_write(self, address: int, data: bytes) -> int:
         """REG_WRITE: validate now, execute on ACTION; sets Registered Instruction."""

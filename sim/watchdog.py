@@ -43,7 +43,9 @@ class BusWatchdog:
 
     def packet(self, t: float) -> None:
         """An instruction packet for this servo arrived at clock time ``t``: the interval restarts."""
-        self.last_packet = max(self.last_packet, float(t))
+        t = float(t)
+        if t > self.last_packet:  # max(), without the call: every servo hears every packet
+            self.last_packet = t
 
     def deadline(self, *, setting: int, torque: bool) -> float:
         """Clock time it trips with Bus Watchdog item ``setting`` and Torque Enable ``torque``; inf when it cannot."""

@@ -85,6 +85,19 @@ def test_crc_continues_from_a_previous_value():
     assert crc16(data[4:], crc16(data[:4])) == 0x4E19
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_crc_is_the_sdks_byte_loop_on_random_data(seed):
+    """Two bytes per step (crc16) against dynamixel-sdk's updateCRC, one byte per step: odd and even lengths, any
+    starting register, bytes, bytearrays and memoryviews."""
+    rng = random.Random(seed)
+    sdk = Protocol2PacketHandler()
+    for _ in range(300):
+        data = bytes(rng.randrange(256) for _ in range(rng.randrange(0, 80)))
+        start = rng.choice((0, rng.randrange(0x10000)))
+        expected = sdk.updateCRC(start, list(data), len(data))
+        assert crc16(data, start) == crc16(bytearray(data), start) == crc16(memoryview(data), start) == expected
+
+
 @pytest.mark.parametrize(
     ("body", "stuffed"),
     [
