@@ -20,23 +20,35 @@ inverse.  The target (issue 19): the rig's rate at least TARGET_RATIO of one bus
    ticks the machine's other load disturbed least); the mean tick, the CPU per tick of the driver (this process) and
    of each arm's simulator process, and the cores they kept busy; how punctually each simulator sent its replies
    (``SimServer.pacing``: how many left later than 0.5 ms, i.e. the machine did not keep real time, the median and
-   99th percentile lateness, the worst).  What limits 1. here: CPU and the scheduler.  Per tick each arm's simulator
-   process takes ~0.7 ms of CPU, ~0.45 of it the servos' Python (``SimBus.feed``), the rest two wake-ups (the
-   instruction; the timer 100 us before the reply, ~35 us of CPU each on this VM), the spin, the send and the loop;
-   the driver ~0.25 ms per arm (its SYNC_WRITE ~0.08, the read request ~0.06, the collect ~0.11).  So each tick starts
-   with three runnable processes on the 2 cores, and a rig tick is one arm's plus the later of the first arm's
-   collect and the second arm's write, plus what the driver loses when a simulator its write woke takes its core
-   (traced: the second arm's SYNC_WRITE reached its simulator 0.2-0.4 ms after the first's instead of ~0.1 ms).
-   Measured with the other workers' load (load average 1.0-2.1, 6 runs each, medians): ratio 0.895 inline, 0.885
-   pipelined (0.81-0.92; 2 of 6 runs >= 0.90), fastest tenth 0.945; before the simulator's garbage collections waited
-   for idle moments and the driver used its socket directly: 0.895, 0.83 (0.77-0.89, none >= 0.90), 0.885; CPU per
-   rig tick driver 0.64 -> 0.50 ms, simulators 1.52 -> 1.37 ms; replies later than 0.5 ms 0.4-8.5 % -> 0.2-0.8 %, the
-   worst 18-30 ms (a full collection) -> 2-8 ms.  Tried and left out: ``SPIN_S`` 40 us (median reply 17-20 us late, no
-   CPU saved; 0 was worse still); the simulator yielding its core (``sched_yield``) on packets nobody answers (inline
-   ratio +0.02-0.10, pipelined unchanged at moderate load, one arm's replies more often late); SCHED_BATCH simulators
-   (best blocks 0.90-0.93, but 42-48 % of replies late under the other workers' load).
+   99th percentile lateness, the worst).  What limits 1. here: the scheduler's placement more than CPU.  Per tick
+   each arm's simulator process takes ~0.5-0.6 ms of CPU, ~0.3 of it the servos' Python (``SimBus.feed``: on a warm
+   cache the SYNC_WRITE of 8 goals ~115 us, the FAST_SYNC_READ ~75 us; ~1.5 x that between ticks, caches cold), the
+   rest two or three wake-ups (each instruction; the timer 100 us before the reply, ~35 us of CPU each on this VM),
+   the spin, the send and the loop; the driver ~0.2 ms per arm (its Python ~55 us of it on a warm cache, the rest
+   the socket calls, the wake-ups they cause and cold caches).  A rig tick is one arm's plus the second arm's
+   collect, plus what the driver loses when a simulator its write or read request woke takes its core: Linux puts a
+   socket's wake-up on the waker's CPU when the waker runs alone there, and a simulator's reply pulls the driver onto
+   that simulator's CPU, so the next write to it lands there too and preempts the driver (``perf sched``, 1 s of
+   pipelined rig ticks: preempted by a simulator 0.17-0.22 times per tick before the simulators' speed-up, 0.42-0.44
+   after, 75-85 -> 140-150 ms of waiting per second: the leaner simulators now sleep between an arm's SYNC_WRITE and
+   its read request, which the rig sends ~0.3 ms apart, and each wake-up is one more chance).  Diagnosis only (not
+   something to ship): with the simulators kept off the driver's CPU (taskset) the pipelined ratio is 0.94-0.95 now,
+   0.89-0.93 before.  Measured with the other workers' load (load average 0.4-1.5, 10 runs each, interleaved with
+   the tree before the simulators' and the driver's speed-up, medians): CPU per rig tick driver 0.52 -> 0.51 ms,
+   simulators 0.67 -> 0.59 ms each (one arm: driver 0.26 -> 0.23, simulator 0.69 -> 0.55 ms); in process (4.) the
+   simulator 0.40-0.58 -> 0.26-0.28 ms, the driver and SDK 0.12-0.17 -> 0.09-0.11 ms per arm tick; one arm's
+   pipelined rate 588 -> 626 ticks/s, the rig's 523 -> 523: ratio 0.89 -> 0.84 pipelined (0.80-0.97; 1 of 10 runs
+   >= 0.90 either way), 0.91 -> 0.885 inline; replies later than 0.5 ms 0.2-1.9 % both.  Earlier: the simulator's
+   garbage collections wait for idle moments and the driver uses its socket directly (CPU per rig tick driver 0.64 ->
+   0.50 ms, simulators 1.52 -> 1.37 ms; the worst late reply 18-30 ms -> 2-8 ms).  Tried and left out: ``SPIN_S`` 40 us
+   (median reply 17-20 us late, no CPU saved; 0 was worse still); the simulator yielding its core (``sched_yield``)
+   on packets nobody answers (inline ratio +0.02-0.10, pipelined unchanged at moderate load, one arm's replies more
+   often late); SCHED_BATCH simulators (best blocks 0.90-0.93, but 42-48 % of replies late under the other workers'
+   load); the simulator deferring a SYNC_WRITE until the read request after it or 250 us (the write's preemption of
+   the driver moves to the request: rig unchanged); ``epoll`` in the simulator (its millisecond timeouts make
+   replies late).
 2. In process, for comparison (``sim://``, the figure checked before): both simulated buses run in the driver's
-   own interpreter, so the simulated servos' Python (~0.37 ms per arm per tick, 4.) competes with the driver for the
+   own interpreter, so the simulated servos' Python (~0.27 ms per arm per tick, 4.) competes with the driver for the
    GIL and the rig's ticks pay for both arms' simulators in turn; that measures the simulator more than the bus,
    hence the check on 1.  Also the same ticks with each arm's calls in its own worker thread (the design RigBus
    does not use on its tick path: see its module docstring).
