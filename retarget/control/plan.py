@@ -166,8 +166,8 @@ def _least_squares(goal: Array, q0: Array, vmax: Array, amax: Array, iterations:
     fixed = np.fft.rfft(x) * inverse
     easy, vcap, acap = (easy_speed * vmax)[:, None], vmax[:, None], (_ACCEL_SHARE * amax)[:, None]
     keep = _RHO_SPEED / (_RHO_SPEED + speed_cost)  # the share of a speed above ``easy`` that the soft cost keeps
-    d1, d2 = _diff(x), _diff(_diff(x))
-    z1, z2 = np.clip(d1, -vcap, vcap), np.clip(d2, -acap, acap)
+    q, d1 = x, _diff(x)
+    z1, z2 = np.clip(d1, -vcap, vcap), np.clip(_diff(d1), -acap, acap)
     u1, u2 = np.zeros_like(x), np.zeros_like(x)
     rfft, irfft, clip = np.fft.rfft, np.fft.irfft, np.clip
     for _ in range(iterations):
@@ -182,7 +182,7 @@ def _least_squares(goal: Array, q0: Array, vmax: Array, amax: Array, iterations:
         u2 += d2
         z2 = clip(u2, -acap, acap)
         u2 -= z2
-    return q[:, _PAD : _PAD + n] if iterations else goal
+    return q[:, _PAD : _PAD + n]
 
 
 def _diff(y: Array) -> Array:
