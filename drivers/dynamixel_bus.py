@@ -480,6 +480,15 @@ class DynamixelBus:
             ]
         )
 
+    def exchange(self, q: np.ndarray) -> np.ndarray:
+        """One pipelined tick: :meth:`collect_positions`, then :meth:`write_goals` ``(q)`` and
+        :meth:`request_positions`; returns the collected positions ``(n_joints,) float64`` radians.  A failed
+        collect raises before the write."""
+        present = self.collect_positions()
+        self.write_goals(q)
+        self.request_positions()
+        return present
+
     def read_state(self) -> ServoState:
         """Health of every servo (gripper included) in one group read of Present Load/Current .. Temperature.
 

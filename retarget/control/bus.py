@@ -83,6 +83,15 @@ class Bus(Protocol):
     def write_goals(self, q: np.ndarray) -> None:
         """Send goal angles ``(n_joints,) float64`` radians to every servo in one write."""
 
+    def exchange(self, q: np.ndarray) -> np.ndarray:
+        """One pipelined tick: the positions of the read in flight, then goals ``q`` sent and the next read started.
+
+        The same as :meth:`collect_positions`, :meth:`write_goals` ``(q)`` and :meth:`request_positions` in turn
+        (what a bus of one arm does); a bus over several arms (``retarget.rig.RigBus``) goes arm by arm, so each
+        arm's next write follows its own replies without waiting for the others'.  Returns ``(n_joints,) float64``
+        radians; raises as those calls do.
+        """
+
     def set_torque(self, enabled: bool) -> None:
         """Enable or disable torque on every servo of the arm."""
 

@@ -6,8 +6,10 @@ A tick's record needs its read-back, so the read-back decides when to **report**
 - :class:`NoReadBack` (a dry run, no bus): no bus call; each tick is reported at once, without positions;
 - :class:`InlineReadBack`: ``bus.write_goals`` then ``bus.read_positions`` within the tick; reported at once;
 - :class:`PipelinedReadBack`: ``bus.write_goals`` then ``bus.request_positions()`` right after it; the next
-  tick collects the reply with ``bus.collect_positions()`` after its own target, IK and step limit, just
-  before its write, and only then reports the tick before (adding the collect's time to its bus time).  The
+  tick collects the reply after its own target, IK and step limit, just before its write, and only then reports
+  the tick before (adding the collect's time to its bus time).  Collect, write and request are one
+  ``bus.exchange`` (a rig's bus goes arm by arm in it), timed as one: the collect's time that goes to the tick
+  before includes this tick's write and request, whose own bus time is then 0 (the total is the same).  The
   host computes while the status packets are on the wire instead of leaving the wire idle while it computes;
   the wire carries the same packets in the same order (write k, read k, write k + 1, ...).  The last tick's
   read-back is collected after the loop (:meth:`ReadBack.finish`); on Ctrl-C the tick whose goals went out is
@@ -125,12 +127,13 @@ class PipelinedReadBack(ReadBack):
     def send(self, q_cmd: npt.NDArray[np.float64], started: float) -> float:
         bus, perf = self.bus, time.perf_counter
         collect_time = 0.0
-        if self.in_flight:  # the last tick's read-back, on the wire while this tick computed
+        if self.in_flight:  # the last tick's read-back, on the wire while this tick computed; then this tick's
             self.in_flight = False
-            self.present = self.collected = bus.collect_positions()
-            collect_time = perf() - started
-        bus.write_goals(q_cmd)
-        bus.request_positions()
+            self.present = self.collected = bus.exchange(q_cmd)
+            collect_time = perf() - started  # (this tick's write and request in it: see the module docstring)
+        else:
+            bus.write_goals(q_cmd)
+            bus.request_positions()
         self.in_flight = True
         self.ended = ended = perf()
         self.collect_time = collect_time

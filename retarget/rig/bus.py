@@ -9,13 +9,15 @@ a vector into per-arm views.  Joint names are ``"<arm>/<joint>"``.
 
 How the arms run at once (arms on separate ports; a tick costs about the slower arm's wire time, not the sum):
 
-- the tick path (``write_goals``, ``read_positions``, ``request_positions``/``collect_positions``) stays in the
-  calling thread and splits every read: each arm's goals go out (a write waits for no reply), then each arm's
-  read request, then each arm's replies are collected; while the first arm's replies are awaited, the others'
-  are already on their wires.  A bus that cannot split a read (its ``request_positions`` does nothing) is read
-  in turn.  Threads were measured and lose here (``bench/bench_rig.py``): dynamixel-sdk busy-polls the port
-  for a reply, holding the GIL, so two arms' threads take turns in 5 ms slices (the interpreter's switch
-  interval) and a tick cost more than the two arms one after the other;
+- the tick path (``write_goals``, ``read_positions``, ``request_positions``/``collect_positions``, ``exchange``) stays
+  in the calling thread and splits every read: each arm's goals go out (a write waits for no reply), then each arm's
+  read request, then each arm's replies are collected; while the first arm's replies are awaited, the others' are
+  already on their wires.  The pipelined tick (:meth:`RigBus.exchange`, what the control loop calls) goes arm by arm:
+  an arm's replies collected, its goals and its next read request sent at once, then the next arm's, so each arm's
+  wire waits for no other arm's host work.  A bus that cannot split a read (its ``request_positions`` does nothing) is
+  read in turn.  Threads were measured and lose here (``bench/bench_rig.py``): dynamixel-sdk busy-polls the port for a
+  reply, holding the GIL, so two arms' threads take turns in 5 ms slices (the interpreter's switch interval) and a
+  tick cost more than the two arms one after the other;
 - ``connect``, ``close`` and ``set_torque`` (long sequences: pings, configuration, the move to the rest pose,
   which mostly sleeps) run in one persistent worker thread per arm, started on the first of them and ended by
   :meth:`RigBus.close`; each arm's bus is only ever used by one thread at a time.
@@ -46,6 +48,7 @@ RigBus calls.
 ...     def read_positions(self): return self.q.copy()
 ...     def request_positions(self): pass
 ...     def collect_positions(self): return self.q.copy()
+...     def exchange(self, q): p, self.q = self.q.copy(), np.array(q); return p
 ...     def set_torque(self, enabled): pass
 ...     def status(self): return BusStatus(connected=self.on)
 >>> left, right = Plant(2), Plant(3)
@@ -142,6 +145,7 @@ class RigBus:
         self._writes = tuple(bus.write_goals for bus in self.buses.values())
         self._requests = tuple(bus.request_positions for bus in self.buses.values())
         self._collects = tuple(bus.collect_positions for bus in self.buses.values())
+        self._exchanges = tuple(bus.exchange for bus in self.buses.values())
         self._workers: tuple[_Worker, ...] | None = None
 
     # ------------------------------------------------------------------ Bus protocol
@@ -195,11 +199,8 @@ class RigBus:
         A write waits for no reply: the arms' writes go out one after the other and are on their wires together.
         ValueError, before any arm's write, for another shape or a non-finite goal.
         """
-        q = np.asarray(q, dtype=np.float64)
-        parts = self.split(q)
-        if not np.isfinite(q).all():
-            raise ValueError(f"Expected finite goals in radians, got {q}")
-        self._raise_first(self._each([partial(w, p) for w, p in zip(self._writes, parts.values(), strict=True)]))
+        parts = self._goal_parts(q)
+        self._raise_first(self._each([partial(w, p) for w, p in zip(self._writes, parts, strict=True)]))
 
     def read_positions(self) -> npt.NDArray[np.float64]:
         """Present joint angles ``(n_joints,) float64`` radians: every arm's read requested, then every arm's
@@ -219,6 +220,30 @@ class RigBus:
         got = self._each(self._collects)
         self._raise_first(got)
         return np.concatenate([value for value, _ in got])
+
+    def exchange(self, q: npt.ArrayLike) -> npt.NDArray[np.float64]:
+        """One pipelined tick, arm by arm: each arm's own ``exchange`` (collect its read in flight, send its part
+        of the goals ``q`` ``(n_joints,) float64`` radians, request its next read), in rig order.  Returns the
+        collected positions ``(n_joints,) float64`` radians.
+
+        Arm by arm, an arm's next write follows its own replies at once, while the next arm's are taken: with
+        every arm's collect first (:meth:`collect_positions`, then :meth:`write_goals`, :meth:`request_positions`)
+        the first arm's write also waited for the others' collects and writes (``bench/bench_rig.py``: two arms
+        at 0.84-0.93 of one arm's tick rate that way, 0.98-1.02 so).  Once an arm's call failed, the arms after it
+        only collect (none of them gets this tick's goals; the arms before it did), then the failure is raised as
+        any other.  ValueError, before any arm's call, for another shape or a non-finite goal.
+        """
+        parts = self._goal_parts(q)
+        outcomes: list[_Outcome] = []
+        failed = False
+        for exchange, collect, part in zip(self._exchanges, self._collects, parts, strict=True):
+            try:
+                outcomes.append((collect() if failed else exchange(part), None))
+            except Exception as exc:  # noqa: BLE001 - raised by _raise_first once every arm had its turn
+                outcomes.append((None, exc))
+                failed = True
+        self._raise_first(outcomes)
+        return np.concatenate([value for value, _ in outcomes])
 
     def set_torque(self, enabled: bool) -> None:
         """Torque on or off on every arm at once."""
@@ -265,6 +290,14 @@ class RigBus:
             arms = ", ".join(f"{n} {s.stop - s.start}" for n, s in self.slices.items())
             raise ValueError(f"Expected goals of shape ({self.n_joints},) in radians ({arms}), got shape {q.shape}")
         return {name: q[s] for name, s in zip(self.names, self._slice_list, strict=True)}
+
+    def _goal_parts(self, q: npt.ArrayLike) -> list[npt.NDArray[np.float64]]:
+        """Each arm's part of the goals ``q``, in rig order; ValueError for another shape or a non-finite goal."""
+        q = np.asarray(q, dtype=np.float64)
+        parts = list(self.split(q).values())
+        if not np.isfinite(q).all():
+            raise ValueError(f"Expected finite goals in radians, got {q}")
+        return parts
 
     # ------------------------------------------------------------------ the workers
 

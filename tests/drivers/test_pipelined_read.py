@@ -48,6 +48,28 @@ def test_the_read_goes_out_at_the_request_and_is_taken_at_the_collect(bus, sim_b
         np.testing.assert_array_equal(q, bus.read_positions())  # the same read, in one call
 
 
+def test_exchange_is_collect_then_write_then_request(bus, sim_bus, arm):
+    """The pipelined tick in one call: the last read's positions, this tick's SYNC_WRITE, the next read, in that
+    order on the wire; and a collect that fails raises before the write goes out."""
+    rng = np.random.default_rng(5)
+    goal = rng.uniform(bus.lower, bus.upper)
+    bus.write_goals(goal)
+    sim_bus.clock.advance(2.0)
+    bus.request_positions()
+    n = len(sim_bus.log)
+    q = bus.exchange(goal + 0.05)
+    np.testing.assert_allclose(q, goal, atol=2 * np.pi / 4096)  # the read requested before the call
+    sent = [e.instruction for e in list(sim_bus.log)[n:]]
+    assert sent == [Instruction.SYNC_WRITE, sim_bus.log[n - 1].instruction]  # then the same read again
+    bus.collect_positions()  # the read it started
+    sim_bus.clock.advance(2.0)
+    np.testing.assert_allclose(bus.read_positions(), goal + 0.05, atol=2 * np.pi / 4096)  # the goals it wrote
+    n = len(sim_bus.log)
+    with pytest.raises(BusError, match=r"no position read in flight: call request_positions\(\) first"):
+        bus.exchange(goal)
+    assert len(sim_bus.log) == n  # nothing went out
+
+
 @pytest.mark.parametrize(
     "call",
     [

@@ -134,6 +134,49 @@ def test_pipelined_read_returns_both_arms_in_rig_order(make_arms):
         }
 
 
+def test_exchange_collects_each_arm_then_sends_its_goals_and_next_read_arm_by_arm(make_arms):
+    arms = make_arms()
+    log: list[tuple[str, str, float, float]] = []
+    rig_bus = RigBus({n: Recorder(n, arms.buses[n], log, Barrier(1)) for n in NAMES})
+    goals = np.concatenate([goals_for(arms)[n] for n in NAMES])
+    with connected(rig_bus):
+        rig_bus.request_positions()
+        before = np.concatenate([arms.angles(n) for n in NAMES])
+        del log[:]
+        present = rig_bus.exchange(goals)
+        assert [(name, method) for name, method, *_ in log] == [("left", "exchange"), ("right", "exchange")]
+        np.testing.assert_allclose(present, before, atol=1e-9)  # the reads requested before
+        for name in NAMES:
+            np.testing.assert_allclose(arms.goals(name), goals_for(arms)[name], atol=0.002)
+        assert rig_bus.status().ticks == 1
+        rig_bus.collect_positions()  # the reads it started
+        with pytest.raises(ValueError, match=r"Expected finite goals in radians"):
+            rig_bus.exchange(np.r_[goals[:11], np.inf])
+        assert rig_bus.status().ticks == 2  # nothing was collected
+
+
+@pytest.mark.parametrize("faulty", NAMES)
+def test_an_exchange_that_fails_on_one_arm_gives_no_later_arm_its_goals_and_raises_naming_it(make_arms, faulty):
+    """Servo 4 of one arm overloads: its collect raises, so it writes nothing; an arm before it in rig order already
+    has its goals, an arm after it only collects (its read in flight is taken, no new goal goes out)."""
+    arms = make_arms(shutdown="off", faults={faulty: {"hwerror": ["4:overload@5"]}})
+    other = "left" if faulty == "right" else "right"
+    with connected(RigBus(arms.buses)) as rig_bus:
+        rig_bus.write_goals(np.zeros(12))
+        arms.advance(6.0)  # past the fault's time
+        rig_bus.request_positions()
+        before = {n: arms.goals(n) for n in NAMES}
+        ticks = arms.buses[other].status().ticks
+        with pytest.raises(BusError, match=rf"^{faulty}: servo 4: hardware error: overload"):
+            rig_bus.exchange(np.concatenate([goals_for(arms)[n] for n in NAMES]))
+        assert arms.buses[other].status().ticks == ticks + 1  # its read was collected
+        np.testing.assert_array_equal(arms.goals(faulty), before[faulty])
+        if other == "left":  # before the faulty arm: it had its goals and its next read is in flight
+            np.testing.assert_allclose(arms.goals("left"), goals_for(arms)["left"], atol=0.002)
+        else:
+            np.testing.assert_array_equal(arms.goals("right"), before["right"])
+
+
 @pytest.mark.parametrize(
     "goals, match",
     [
@@ -184,10 +227,14 @@ def test_on_one_clock_a_rig_tick_takes_the_wire_time_of_one_arm_not_the_sum(make
     rig = clock_time(lambda: (rig_bus.write_goals(home), rig_bus.read_positions()))
     rig_bus.request_positions()
     pipelined = clock_time(rig_bus.collect_positions)
+    rig_bus.request_positions()
+    exchanged = clock_time(lambda: rig_bus.exchange(home))  # arm by arm: still one arm's wait, not two
+    rig_bus.collect_positions()
     assert one > 0.001  # 1 Mbps: a sync write of 8 servos, a fast sync read and its replies, over 1 ms
     assert in_turn == pytest.approx(2 * one, rel=1e-6)
     assert rig == pytest.approx(one, rel=1e-6)
     assert 0 < pipelined < one
+    assert exchanged == pytest.approx(pipelined, rel=1e-6)
 
 
 class Recorder:
@@ -227,6 +274,9 @@ class Recorder:
 
     def collect_positions(self) -> np.ndarray:
         return self._timed("collect_positions")
+
+    def exchange(self, q: np.ndarray) -> np.ndarray:
+        return self._timed("exchange", q)
 
     def set_torque(self, enabled: bool) -> None:
         self._timed("set_torque", enabled)
