@@ -19,19 +19,22 @@ inverse.  The target (issue 19): the rig's rate at least TARGET_RATIO of one bus
    every arm's write, then every arm's request, then every arm's collect; pipelined (``RigBus.exchange``) arm by arm,
    each arm's collect, write and request together, so an arm's next write waits for no other arm's host work.  Before
    that (every arm's collect, then every arm's write, then every request) the pipelined ratio was 0.84-0.93 on this
-   2-core VM; arm by arm 0.97-1.02 (three runs of each).  Also: the share of the wire-limited rate (3.)
-   reached; the fastest tenth of the inline ticks (the ticks the machine's other load disturbed least); the mean tick,
-   the CPU per tick of the driver (this process) and of each arm's simulator process, and the cores they kept busy;
-   how punctually each simulator sent its replies
-   (``SimServer.pacing``: how many left later than 0.5 ms, i.e. the machine did not keep real time, the median and
+   2-core VM; arm by arm 0.97-1.03 (five runs; the rig at 91 % of the wire-limited rate of 3.), on ptys 1.02.  With
+   ``--rig``, a pair of 6-servo arms (two ``koch``, 5 joints and the gripper each, in a rig file): 0.95 and 0.99, the
+   rig at 83-88 % of the wire-limited rate (943 ticks/s: shorter packets, so the host's share is larger).  Also: the
+   share of the wire-limited rate (3.) reached; the fastest tenth of the inline ticks (the ticks the machine's other
+   load disturbed least); the mean tick, the CPU per tick of the driver (this process) and of each arm's simulator
+   process, and the cores they kept busy; how punctually each simulator sent its replies (``SimServer.pacing``: how
+   many left later than 0.5 ms, i.e. the machine did not keep real time, the median and
    99th percentile lateness, the worst).  What limits 1. here: the scheduler's placement more than CPU.  Per tick
    each arm's simulator process takes ~0.5-0.6 ms of CPU, ~0.3 of it the servos' Python (``SimBus.feed``: on a warm
    cache the SYNC_WRITE of 8 goals ~115 us, the FAST_SYNC_READ ~75 us; ~1.5 x that between ticks, caches cold), the
    rest two or three wake-ups (each instruction; the timer 100 us before the reply, ~35 us of CPU each on this VM),
-   the spin, the send and the loop; the driver ~0.2 ms per arm (its Python ~55 us of it on a warm cache, the rest
-   the socket calls, the wake-ups they cause and cold caches).  A rig tick is one arm's plus the second arm's
-   collect, plus what the driver loses when a simulator its write or read request woke takes its core: Linux puts a
-   socket's wake-up on the waker's CPU when the waker runs alone there, and a simulator's reply pulls the driver onto
+   the spin, the send and the loop; the driver ~0.2 ms per arm (its Python ~55 us of it on a warm cache, the rest the
+   socket calls, the wake-ups they cause and cold caches).  Before the arm-by-arm exchange a rig tick was one arm's
+   plus the second arm's collect, plus what the driver loses when a simulator its write or read request woke takes its
+   core: Linux puts a socket's wake-up on the waker's CPU when the waker runs alone there, and a simulator's reply
+   pulls the driver onto
    that simulator's CPU, so the next write to it lands there too and preempts the driver (``perf sched``, 1 s of
    pipelined rig ticks: preempted by a simulator 0.17-0.22 times per tick before the simulators' speed-up, 0.42-0.44
    after, 75-85 -> 140-150 ms of waiting per second: the leaner simulators now sleep between an arm's SYNC_WRITE and
@@ -63,7 +66,8 @@ inverse.  The target (issue 19): the rig's rate at least TARGET_RATIO of one bus
    call to each arm's worker thread and back costs (RigBus's workers, used for connect, close and set_torque)
    against a ThreadPoolExecutor.
 
-Run: ``python bench/bench_rig.py [--ticks N] [--rounds R] [--transport tcp|pty]`` (about 25 s with the defaults).
+Run: ``python bench/bench_rig.py [--ticks N] [--rounds R] [--transport tcp|pty] [--rig NAME|FILE]`` (about 25 s with
+the defaults).
 Exit status 1 when the default mode's ratio in 1. misses TARGET_RATIO.
 """
 
@@ -137,10 +141,11 @@ class _Timed:
 
 
 @contextmanager
-def arms(*, wire: bool, shared_clock: Clock | None = None) -> Iterator[tuple[dict[str, DynamixelBus], _Timed]]:
+def arms(rig_name: str, *, wire: bool, shared_clock: Clock | None = None
+         ) -> Iterator[tuple[dict[str, DynamixelBus], _Timed]]:  # fmt: skip
     """The rig's arms, each a connected DynamixelBus on its own simulated bus (real clock, or ``shared_clock``);
     closed afterwards (shutdown OFF)."""
-    rig = load_rig("wx250s-pair")
+    rig = load_rig(rig_name)
     urls, simbuses, buses = [], [], {}
     for rig_arm in rig.arms:
         clock = shared_clock if shared_clock is not None else MonotonicClock()
@@ -159,19 +164,20 @@ def arms(*, wire: bool, shared_clock: Clock | None = None) -> Iterator[tuple[dic
 
 
 @contextmanager
-def served_arms(transport: str) -> Iterator[tuple[dict[str, DynamixelBus], list[int], IO[str]]]:
+def served_arms(rig_name: str, transport: str) -> Iterator[tuple[dict[str, DynamixelBus], list[int], IO[str]]]:
     """The rig's arms served by ``retarget sim --rig`` (one process per arm, wire model on, real clock) on ptys or
     loopback TCP, each a connected DynamixelBus on its port: (buses, the arm processes' pids, the server's stderr,
     a file read once it stopped).  Closed and stopped afterwards (shutdown OFF)."""
     where_tcp = ["--tcp", "127.0.0.1:0"] if transport == "tcp" else []
     err = tempfile.TemporaryFile("w+")  # a file, not a pipe: a chatty server never blocks on it
-    argv = [sys.executable, "-m", "retarget", "sim", "--rig", "wx250s-pair", *where_tcp]
+    argv = [sys.executable, "-m", "retarget", "sim", "--rig", rig_name, *where_tcp]
     server = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=err, text=True)
     buses: dict[str, DynamixelBus] = {}
     try:
         assert server.stdout is not None
-        ports = dict(server.stdout.readline().strip().partition("=")[::2] for _ in load_rig("wx250s-pair").arms)
-        for rig_arm in load_rig("wx250s-pair").arms:
+        rig = load_rig(rig_name)
+        ports = dict(server.stdout.readline().strip().partition("=")[::2] for _ in rig.arms)
+        for rig_arm in rig.arms:
             port = ports[rig_arm.name]
             buses[rig_arm.name] = DynamixelBus(rig_arm.arm, port, shutdown="off", check_latency=False)
         for bus in buses.values():
@@ -325,9 +331,11 @@ def _print_rates(title: str, one: list[float], rig: list[float]) -> list[float]:
     return ratios
 
 
-def out_of_process(transport: str, ticks: int, rounds: int) -> tuple[list[float], list[float], list[str], str]:
+def out_of_process(
+    rig_name: str, transport: str, ticks: int, rounds: int
+) -> tuple[list[float], list[float], list[str], str]:
     """1.: ([inline, pipelined] of one arm, the same of the rig), the CPU lines, the servers' pacing lines."""
-    with served_arms(transport) as (buses, pids, err):
+    with served_arms(rig_name, transport) as (buses, pids, err):
         left, rig_bus = buses["left"], RigBus(buses)
         home = np.concatenate([b.arm.home for b in buses.values()])
         one, rig = interleaved_rates(left, left.arm.home, rig_bus, home, max(50, ticks // rounds), rounds)
@@ -352,21 +360,23 @@ def main() -> int:
     parser.add_argument("--ticks", type=int, default=600, help="timed ticks per measurement (default 600)")
     parser.add_argument("--rounds", type=int, default=4, help="interleaved blocks per case in 1. and 2. (default 4)")
     parser.add_argument("--transport", choices=("pty", "tcp"), default="tcp", help="1.'s ports (default tcp)")
+    parser.add_argument("--rig", default="wx250s-pair", help="a bundled rig or a rig file (default wx250s-pair)")
     args = parser.parse_args()
     n = args.ticks
     load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
-    print(f"wx250s-pair: 2 arms x 9 servos, each arm on its own simulated bus at 1 Mbps ({os.cpu_count()} cores, "
-          f"load average {load})")  # fmt: skip
+    servos = ", ".join(f"{a.name} {a.arm.name} {len(a.arm.servo_ids)}" for a in load_rig(args.rig).arms)
+    print(f"{args.rig}: servos per arm: {servos}; each arm on its own simulated bus at 1 Mbps ({os.cpu_count()} "
+          f"cores, load average {load})")  # fmt: skip
     default = 1 if DEFAULT_PIPELINE else 0  #: the mode RigReplay runs by default: the figure checked
 
-    one_o, rig_o, cpu_o, pacing = out_of_process(args.transport, n, args.rounds)
+    one_o, rig_o, cpu_o, pacing = out_of_process(args.rig, args.transport, n, args.rounds)
     title = f"1. out of process ({args.transport}), wire model in real time, best of {args.rounds}"
     ratios = _print_rates(title, one_o, rig_o)
     ok = ratios[default] >= TARGET_RATIO
     print(f"   checked: RigReplay's default, {('inline', 'pipelined')[default]}: ratio {ratios[default]:.2f} "
           f"(target >= {TARGET_RATIO:.2f})   {'ok' if ok else 'MISSED'}")  # fmt: skip
 
-    with arms(wire=True) as (buses, _):
+    with arms(args.rig, wire=True) as (buses, _):
         left, rig_bus = buses["left"], RigBus(buses)
         home = np.concatenate([b.arm.home for b in buses.values()])
         one, rig = interleaved_rates(left, left.arm.home, rig_bus, home, max(50, n // args.rounds), args.rounds)
@@ -375,7 +385,7 @@ def main() -> int:
     print(f"   each arm in its own thread (not used)         {threads:8.0f}            ratio {threads / one[0]:.2f}")
 
     clock = VirtualClock()
-    with arms(wire=True, shared_clock=clock) as (buses, _):
+    with arms(args.rig, wire=True, shared_clock=clock) as (buses, _):
         left, rig_bus = buses["left"], RigBus(buses)
         one_v = _rates(left, left.arm.home, n // 4, clock.now)
         rig_v = _rates(rig_bus, np.concatenate([b.arm.home for b in buses.values()]), n // 4, clock.now)
@@ -388,7 +398,7 @@ def main() -> int:
     print("\n".join(cpu_o))
     print(pacing or "   (no pacing record from the simulator)")
 
-    with arms(wire=False) as (buses, timed):
+    with arms(args.rig, wire=False) as (buses, timed):
         left, rig_bus = buses["left"], RigBus(buses)
         home = np.concatenate([b.arm.home for b in buses.values()])
         cpu = []
