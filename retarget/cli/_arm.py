@@ -27,9 +27,10 @@ from retarget.errors import ConfigError
 DEFAULT_ARM = "wx250s"
 
 
-def add_arm_arguments(parser: argparse.ArgumentParser | Any, *, default: str = DEFAULT_ARM) -> None:
-    """--arm NAME|PATH, --base LINK, --tip LINK (on a parser or an argument group)."""
-    parser.add_argument("--arm", default=default, help=f"arm name or TOML/URDF path (default {default})")
+def add_arm_arguments(parser: argparse.ArgumentParser | Any, *, default: str | None = DEFAULT_ARM) -> None:
+    """--arm NAME|PATH, --base LINK, --tip LINK (on a parser or an argument group); ``default`` None: the default
+    arm, and the command can tell that no --arm was given."""
+    parser.add_argument("--arm", default=default, help=f"arm name or TOML/URDF path (default {default or DEFAULT_ARM})")
     add_link_arguments(parser)
     add_calibration_argument(parser)  # --calibration (retarget.cli._calibration)
 

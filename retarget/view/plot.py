@@ -1,8 +1,10 @@
 """A telemetry CSV (``--telemetry``, :mod:`retarget.control.telemetry`) as a PNG (matplotlib, Agg: no GUI).
 
 One panel per joint: commanded and present angle in degrees, the joint's limits shaded beyond them; then the
-IK error (mm) with the clamped and velocity-limited ticks marked, then the tick and bus times (ms) with the
-overruns marked.  The x axis is the run time (s); lead-in rows are shaded.
+IK error and the tracking error (mm) with the clamped and velocity-limited ticks marked, then the tick and bus
+times (ms) with the overruns marked.  The x axis is the run time (s); lead-in rows are shaded.  A rig's telemetry
+(:mod:`retarget.rig.telemetry`: every arm's columns prefixed by its name) is drawn the same way, each arm's joints
+in a column of their own and each arm's errors in its own colour.
 
     plot_telemetry(read_telemetry(Path("run.csv")), Path("run.png"), limits=(arm.lower, arm.upper))
 """
@@ -29,15 +31,20 @@ from retarget.errors import ConfigError  # noqa: E402
 __all__ = ["Telemetry", "plot_telemetry", "read_telemetry"]
 
 CMD, PRESENT, LIMIT, LEAD, IK = "#2a6edc", "#ff8c00", "#dc1e1e", "#cccccc", "#6a3d9a"
+ARM_COLOURS = ("#6a3d9a", "#1b9e77", "#d95f02")  #: a rig's arms' errors, in rig order
 
 
 @dataclass(frozen=True)
 class Telemetry:
-    """A telemetry file's columns by name (``(n_rows,)`` float64, NaN where empty) and its joint names."""
+    """A telemetry file's columns by name (``(n_rows,)`` float64, NaN where empty), its joint names and its arms.
+
+    ``arms``: ``("",)`` for one arm's file; a rig's arm names in column order (``("left", "right")``), its joints
+    then named with their arm's prefix (``"left/waist"``), as its columns are."""
 
     path: Path
     columns: dict[str, np.ndarray]
     joints: tuple[str, ...]
+    arms: tuple[str, ...] = ("",)
 
     def __getitem__(self, name: str) -> np.ndarray:
         return self.columns[name]
@@ -49,7 +56,10 @@ def read_telemetry(path: Path) -> Telemetry:
         reader = csv.reader(f)
         header = next(reader, None)
         rows = list(reader)
-    needed = {"time_s", "ik_error_mm", "tick_ms", "bus_ms", "clamped", "velocity_limited", "overrun"}
+    arms = tuple(name[: -len("/ik_error_mm")] for name in header or [] if name.endswith("/ik_error_mm")) or ("",)
+    needed = {"time_s", "tick_ms", "bus_ms", "overrun"} | {f"{_prefix(arm)}ik_error_mm" for arm in arms}
+    if arms == ("",):
+        needed |= {"clamped", "velocity_limited"}
     if header is None or not needed <= set(header):
         missing = sorted(needed - set(header or []))
         raise ConfigError(f"Expected a telemetry CSV written by --telemetry, missing columns {', '.join(missing)}",
@@ -68,17 +78,37 @@ def read_telemetry(path: Path) -> Telemetry:
                     raise ConfigError(f"Expected a number on line {i + 2}", path=path, key=header[k],
                                       value=value[:40]) from None  # fmt: skip
     joints = tuple(name[: -len("_cmd_rad")] for name in header if name.endswith("_cmd_rad"))
-    return Telemetry(path, {name: data[:, k] for k, name in enumerate(header)}, joints)
+    return Telemetry(path, {name: data[:, k] for k, name in enumerate(header)}, joints, arms)
+
+
+def _prefix(arm: str) -> str:
+    """A rig arm's column prefix (``"left/"``); ``""`` for one arm's file."""
+    return f"{arm}/" if arm else ""
+
+
+def _panels(telemetry: Telemetry) -> tuple[list[tuple[int, int]], int, int]:
+    """Each joint's panel (row, column), the joint rows and the columns: a rig's arms a column each (two arms or
+    three), one arm's joints in two columns when there are more than three."""
+    arms = telemetry.arms
+    if 1 < len(arms) <= 3:
+        places: list[tuple[int, int]] = []
+        rows = dict.fromkeys(arms, 0)  # the panels of each arm so far
+        for name in telemetry.joints:
+            arm = name.split("/", 1)[0]
+            places.append((rows[arm], arms.index(arm)))
+            rows[arm] += 1
+        return places, max(rows.values()), len(arms)
+    n = len(telemetry.joints)
+    cols = 2 if n > 3 else 1
+    return [(j // cols, j % cols) for j in range(n)], math.ceil(n / cols), cols
 
 
 def plot_telemetry(
     telemetry: Telemetry, path: Path, *, limits: tuple[np.ndarray, np.ndarray] | None = None, title: str = ""
 ) -> None:
     """Draw ``telemetry`` to ``path`` (PNG); ``limits`` ``(lower, upper)`` radians per joint, shaded when given."""
-    n = len(telemetry.joints)
-    cols = 2 if n > 3 else 1
-    joint_rows = math.ceil(n / cols)
-    fig = plt.figure(figsize=(10, 1.55 * joint_rows + 3.9), dpi=100)
+    places, joint_rows, cols = _panels(telemetry)
+    fig = plt.figure(figsize=(10 if cols <= 2 else 13, 1.55 * joint_rows + 3.9), dpi=100)
     grid = fig.add_gridspec(joint_rows + 2, cols, height_ratios=[1.0] * joint_rows + [1.1, 1.1], hspace=0.35,
                             wspace=0.18, left=0.08, right=0.98, top=1 - 0.8 / fig.get_figheight(),
                             bottom=0.45 / fig.get_figheight())  # fmt: skip
@@ -87,7 +117,7 @@ def plot_telemetry(
     first: Axes | None = None
     axes: list[Axes] = []
     for j, name in enumerate(telemetry.joints):
-        ax = fig.add_subplot(grid[j // cols, j % cols], sharex=first)
+        ax = fig.add_subplot(grid[places[j]], sharex=first)
         first = first or ax
         lo_hi = None if limits is None else (math.degrees(limits[0][j]), math.degrees(limits[1][j]))
         _joint(ax, t, telemetry, name, lo_hi)
@@ -157,10 +187,19 @@ def y_range(values: np.ndarray, limits: tuple[float, float]) -> tuple[float, flo
 
 
 def _ik(ax: Axes, t: np.ndarray, tel: Telemetry) -> None:
-    ax.plot(t, tel["ik_error_mm"], color=IK, lw=0.8, label="IK error")
-    top = max(float(np.nanmax(tel["ik_error_mm"])), 1.0)
+    """The IK error (solid) and the tracking error (thin, where the file has it) of each arm, in mm."""
+    top = 1.0
+    for arm, color in zip(tel.arms, ARM_COLOURS if len(tel.arms) > 1 else (IK,), strict=False):
+        name = f"{arm} " if arm else ""
+        ik = tel[f"{_prefix(arm)}ik_error_mm"]
+        ax.plot(t, ik, color=color, lw=0.8, label=f"{name}IK error")
+        top = max(top, float(np.nanmax(ik)) if not np.isnan(ik).all() else 0.0)
+        tracking = tel.columns.get(f"{_prefix(arm)}tracking_mm")
+        if tracking is not None and not np.isnan(tracking).all():
+            ax.plot(t, tracking, color=color, lw=0.7, ls=":", label=f"{name}tracking error")
+            top = max(top, float(np.nanmax(tracking)))
     for flag, color, y in (("clamped", "#e000e0", 1.05), ("velocity_limited", "#28a028", 1.12)):
-        rows = tel[flag] > 0
+        rows = tel.columns.get(flag, np.zeros_like(t)) > 0
         if rows.any():
             ax.plot(
                 t[rows],
@@ -171,7 +210,7 @@ def _ik(ax: Axes, t: np.ndarray, tel: Telemetry) -> None:
                 label=flag.replace("_", "-").replace("clamped", "target clamped"),
             )
     ax.set_ylim(0, top * 1.2)
-    ax.set_ylabel("IK error\n(mm)", fontsize=8)
+    ax.set_ylabel("error\n(mm)", fontsize=8)
 
 
 def _timing(ax: Axes, t: np.ndarray, tel: Telemetry) -> None:

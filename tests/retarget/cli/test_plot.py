@@ -96,3 +96,76 @@ def test_a_constant_joint_shows_its_limits(capsys, tmp_path):
         region = img[int(box[1] * h) : int(box[3] * h), int(box[0] * w) : int(box[2] * w)]
         hits = (np.abs(region - shaded).max(axis=-1) < 0.02).sum()
         assert hits > 1000, (box, hits)
+
+
+def rig_csv(path, left_deg: np.ndarray, right_deg: np.ndarray) -> None:
+    """A telemetry file of the wx250s-pair rig (retarget.rig.telemetry's columns): each arm's waist as given
+    (degrees), every other joint 0."""
+    from retarget.rig import load_rig
+
+    rig = load_rig("wx250s-pair")
+    cols = ["time_s", "clip_time_s", "tick", "tick_ms", "compute_ms", "bus_ms", "overrun", "lead_in", "blocked",
+            "min_clearance_mm"]  # fmt: skip
+    for a in rig.arms:
+        p = f"{a.name}/"
+        cols += [f"{p}target_x_m", f"{p}target_y_m", f"{p}target_z_m"]
+        cols += [f"{p}{j}_{kind}_rad" for kind in ("cmd", "present") for j in a.arm.joint_names]
+        cols += [f"{p}ik_error_mm", f"{p}ik_converged", f"{p}tracking_mm"]
+    rows = []
+    for k in range(len(left_deg)):
+        row = dict.fromkeys(cols, 0.0)
+        row.update(time_s=k / 100, tick=k, tick_ms=2.0, bus_ms=1.0)
+        for side, deg in (("left", left_deg[k]), ("right", right_deg[k])):
+            row[f"{side}/waist_cmd_rad"] = row[f"{side}/waist_present_rad"] = np.radians(deg)
+            row[f"{side}/ik_error_mm"], row[f"{side}/tracking_mm"] = 0.5, 3.0
+        rows.append([row[c] for c in cols])
+    path.write_text("\n".join([",".join(cols), *(",".join(str(v) for v in r) for r in rows)]) + "\n")
+
+
+def test_plot_draws_a_rigs_arms_side_by_side(capsys, tmp_path):
+    """The left arm's joints in the left column, the right arm's in the right: each waist's trace where its own
+    columns say (here the left rises while the right falls)."""
+    path = tmp_path / "rig.csv"
+    rig_csv(path, np.linspace(-60, 60, 100), np.linspace(60, -60, 100))
+    png = tmp_path / "rig.png"
+    assert main(["plot", str(path), "--rig", "wx250s-pair", "-o", str(png)]) == 0, capsys.readouterr().err
+    assert "100 ticks" in capsys.readouterr().err
+    for box, rising in (((0.0, 0.05, 0.5, 0.13), True), ((0.5, 0.05, 1.0, 0.13), False)):
+        drawn = trace_rows(png, box)
+        drawn = drawn[~np.isnan(drawn)]
+        assert drawn.size > 20, box
+        first, last = drawn[: drawn.size // 5].mean(), drawn[-drawn.size // 5 :].mean()
+        assert (last < first) == rising, box
+    assert main(["plot", str(path), "-o", str(tmp_path / "bare.png")]) == 0  # no --rig: no limits, still drawn
+
+
+@pytest.mark.parametrize(
+    "args, option, match",
+    [
+        pytest.param(["--arm", "wx250s"], "--arm", "Expected --rig for a rig's telemetry", id="arm-for-a-rig"),
+        pytest.param(["--rig", "KOCH_PAIR"], "--rig", "Expected the joints left/waist", id="another-rig"),
+    ],
+)
+def test_plot_of_a_rig_refuses_options_that_do_not_fit(capsys, tmp_path, args, option, match):
+    path, koch_pair = tmp_path / "rig.csv", tmp_path / "koch-pair.toml"
+    rig_csv(path, np.zeros(5), np.zeros(5))
+    arms = [f'[[arms]]\nname = "{s}"\narm = "koch"\nxyz = [0, {y}, 0]\nrpy = [0, 0, 0]\nside = "{s}"\n'
+            for s, y in (("left", 0.2), ("right", -0.2))]  # fmt: skip
+    koch_pair.write_text('[rig]\nname = "koch-pair"\n\n' + "\n".join(arms))
+    args = [str(koch_pair) if a == "KOCH_PAIR" else a for a in args]
+    assert main(["plot", str(path), *args, "-o", str(tmp_path / "x.png")]) == 2
+    err = capsys.readouterr().err
+    assert match in err and option in err and len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_plot_of_one_arms_file_refuses_a_rig_and_draws_another_arms_file_without_limits(capsys, tmp_path):
+    path = tmp_path / "run.csv"
+    telemetry_csv(path, np.linspace(-60, 60, 100))
+    assert main(["plot", str(path), "--rig", "wx250s-pair", "-o", str(tmp_path / "x.png")]) == 2
+    assert "Expected a rig's telemetry with --rig" in capsys.readouterr().err
+    koch = tmp_path / "koch.csv"  # another arm's joints: without --arm it is drawn without limits, not refused
+    koch.write_text(path.read_text().replace("waist", "shoulder_pan"))
+    assert main(["plot", str(koch), "-o", str(tmp_path / "koch.png")]) == 0, capsys.readouterr().err
+    assert main(["plot", str(koch), "--arm", "wx250s", "-o", str(tmp_path / "koch.png")]) == 2
+    assert "Expected the joints shoulder_pan" in capsys.readouterr().err
