@@ -189,6 +189,11 @@ def main() -> int:
         clips = [c for c in clips if c.stem in args.clips]
     print(f"{'clip':18s} {'arm':6s} {'side':5s} | TODAY: peak rad/s2, cap, p95 mm | "
           "now: over (blocked), peak rad/s2, cap, redund rad, p95 mm, RTF | met")  # fmt: skip
+    if clips:  # one run first, unprinted: the first row's RTF would include the process's warm-up (94x against 123x)
+        first = retarget.load_bvh(clips[0])
+        arm0 = retarget.load_arm(args.arms[0])
+        measure(export_loop(clips[0], args.arms[0], args.sides[0], *args.flags.split())[1], arm0,
+                unfiltered(first, arm0, args.sides[0]))  # fmt: skip
     for clip in clips:
         motion = retarget.load_bvh(clip)
         for arm_name in args.arms:
