@@ -271,7 +271,8 @@ def _telemetry(target: str | None, records: RigTeleopRecords) -> Iterator[RigTel
 
 
 def _report(args: argparse.Namespace, result: RigTeleopResult) -> None:
-    """The summary on stderr; the result on stdout: JSON, or one line per arm (world frame)."""
+    """The summary on stderr; the result on stdout: JSON, or one line per arm (world frame), on stderr when stdout
+    carries the telemetry (``--telemetry -``)."""
     s = result.summary
     head = f"teleop{' (interrupted)' if s.interrupted else ''}{' (dry run)' if s.dry_run else ''}: {s.clip} on rig "
     head += f"{result.rig.name}: {s.ticks} ticks "
@@ -280,14 +281,16 @@ def _report(args: argparse.Namespace, result: RigTeleopResult) -> None:
     if args.json:
         print_json({**s.to_dict(), "teleop": result.to_dict()})
         return
+    out = sys.stderr if args.telemetry == "-" else sys.stdout
     for name, r in result.arms.items():
         target, reached = result.world(name)
         if target is None or r.residual is None:
-            print(f"{name}: no target received")
+            print(f"{name}: no target received", file=out)
             continue
         verdict = "reached" if r.reached_target else "NOT reached (nearest point)"
         print(
             f"{name}: target {target[0]:.4f} {target[1]:.4f} {target[2]:.4f} m  reached {reached[0]:.4f} "
             f"{reached[1]:.4f} {reached[2]:.4f} m (world frame)  residual {r.residual * 1e3:.2f} mm  {verdict} "
-            f"(tolerance {r.tolerance * 1e3:g} mm)"
+            f"(tolerance {r.tolerance * 1e3:g} mm)",
+            file=out,
         )

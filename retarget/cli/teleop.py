@@ -359,7 +359,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _report(args: argparse.Namespace, result: TeleopResult, pose: BasePose | None) -> None:
-    """The summary on stderr; the result on stdout (JSON, or a line in the frame the targets were given in)."""
+    """The summary on stderr; the result on stdout (JSON, or a line in the frame the targets were given in), or on
+    stderr when stdout carries the telemetry (``--telemetry -``)."""
     s = result.summary
     head = f"teleop{' (interrupted)' if s.interrupted else ''}: {s.clip} on {s.arm}: {s.ticks} ticks at "
     head += f"{s.rate_hz:g} Hz, {s.run_time_s:.2f} s in {s.wall_time_s:.3f} s ({s.real_time_factor:.1f}x real time)"
@@ -374,6 +375,7 @@ def _report(args: argparse.Namespace, result: TeleopResult, pose: BasePose | Non
     if result.target is None or result.residual is None:
         print("no target received", file=sys.stderr)
         return
+    out = sys.stderr if args.telemetry == "-" else sys.stdout
     r, t = result.reached, result.target
     frame = "base"
     if pose is not None:
@@ -383,7 +385,8 @@ def _report(args: argparse.Namespace, result: TeleopResult, pose: BasePose | Non
     angle = "" if math.isnan(error) else f"  orientation {math.degrees(error):.2f} deg"
     print(
         f"target {t[0]:.4f} {t[1]:.4f} {t[2]:.4f} m  reached {r[0]:.4f} {r[1]:.4f} {r[2]:.4f} m ({frame} frame)  "
-        f"residual {result.residual * 1e3:.2f} mm{angle}  {verdict} (tolerance {result.tolerance * 1e3:g} mm)"
+        f"residual {result.residual * 1e3:.2f} mm{angle}  {verdict} (tolerance {result.tolerance * 1e3:g} mm)",
+        file=out,
     )
 
 

@@ -204,8 +204,9 @@ def test_dry_run_telemetry_one_row_per_tick_each_arm_prefixed(capsys):
     targets = {"left": (0.3, 0.35, 0.2), "right": (0.25, -0.3, 0.25)}
     code, out, err = teleop(capsys, "--to", "left 0.3 0.35 0.2 right 0.25 -0.3 0.25", "--dry-run", "--telemetry", "-")
     assert code == 0, err
-    *table, left, right = out.splitlines()  # the CSV, then each arm's result line (as one arm's teleop)
-    assert LINE.match(left).group(1) == "left" and LINE.match(right).group(1) == "right"
+    table = out.splitlines()  # the CSV alone: each arm's result line goes to stderr (as one arm's teleop)
+    assert [m.group(1) for m in map(LINE.match, err.splitlines()) if m] == ["left", "right"]
+    assert all(len(line.split(",")) == len(table[0].split(",")) for line in table)
     rows = list(csv.DictReader(table))
     ticks = int(re.search(r"on rig wx250s-pair: (\d+) ticks", err).group(1))
     assert len(rows) == ticks > 50 and list(rows[0])[10:13] == ["left/target_x_m", "left/target_y_m", "left/target_z_m"]

@@ -182,3 +182,13 @@ def test_bad_input_exits_2_with_one_line(capsys, args, match):
     lines = err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("retarget: "), err
     assert re.search(match, lines[0]), lines[0]
+
+
+def test_telemetry_on_stdout_is_the_csv_alone_and_the_result_line_goes_to_stderr(registered, capsys, monkeypatch):
+    stdin_bytes(monkeypatch, b"0.3 0.0 0.2\n")
+    code, out, err = teleop(capsys, "--stdin", "--port", registered[1], "--fast", "--telemetry", "-")
+    assert code == 0, err
+    rows = list(csv.reader(io.StringIO(out)))
+    assert rows[0][:3] == ["time_s", "clip_time_s", "tick"] and len(rows) > 10
+    assert all(len(row) == len(rows[0]) for row in rows)  # every line of stdout is a telemetry row
+    assert "target 0.3000 0.0000 0.2000 m  reached " in err
