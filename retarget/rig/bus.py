@@ -55,7 +55,9 @@ RigBus calls.
 >>> with RigBus({"left": left, "right": right}) as bus:
 ...     bus.write_goals(np.array([0.1, 0.2, 0.3, 0.4, 0.5]))   # (5,) rad: left's 2 joints, then right's 3
 ...     bus.read_positions().tolist(), right.q.tolist()
+...     bus.exchange(np.zeros(5)).tolist(), right.q.tolist()  # the positions before, then the new goals sent
 ([0.1, 0.2, 0.3, 0.4, 0.5], [0.3, 0.4, 0.5])
+([0.1, 0.2, 0.3, 0.4, 0.5], [0.0, 0.0, 0.0])
 >>> bus.joint_names[1:3], bus.status().connected, left.on
 (('left/j1', 'right/j0'), False, False)
 """
