@@ -231,19 +231,12 @@ class RigBus:
         Arm by arm, an arm's next write follows its own replies at once, while the next arm's are taken: with
         every arm's collect first (:meth:`collect_positions`, then :meth:`write_goals`, :meth:`request_positions`)
         the first arm's write also waited for the others' collects and writes (``bench/bench_rig.py``: two arms
-        at 0.84-0.93 of one arm's tick rate that way, 0.98-1.02 so).  Once an arm's call failed, the arms after it
+        at 0.84-0.93 of one arm's tick rate that way, 0.97-1.03 so).  Once an arm's call failed, the arms after it
         only collect (none of them gets this tick's goals; the arms before it did), then the failure is raised as
         any other.  ValueError, before any arm's call, for another shape or a non-finite goal.
         """
-        parts = self._goal_parts(q)
-        outcomes: list[_Outcome] = []
-        failed = False
-        for exchange, collect, part in zip(self._exchanges, self._collects, parts, strict=True):
-            try:
-                outcomes.append((collect() if failed else exchange(part), None))
-            except Exception as exc:  # noqa: BLE001 - raised by _raise_first once every arm had its turn
-                outcomes.append((None, exc))
-                failed = True
+        calls = [partial(e, p) for e, p in zip(self._exchanges, self._goal_parts(q), strict=True)]
+        outcomes = self._each(calls, once_failed=self._collects)
         self._raise_first(outcomes)
         return np.concatenate([value for value, _ in outcomes])
 
@@ -344,15 +337,20 @@ class RigBus:
         return outcomes
 
     @staticmethod
-    def _each(calls: Sequence[Callable[[], Any]]) -> list[_Outcome]:
+    def _each(
+        calls: Sequence[Callable[[], Any]], *, once_failed: Sequence[Callable[[], Any]] | None = None
+    ) -> list[_Outcome]:
         """The tick path: each arm's call in turn, in the calling thread, every one even when an earlier one
-        raised (a Ctrl-C stops at once); the outcomes in rig order."""
+        raised (a Ctrl-C stops at once); the outcomes in rig order.  With ``once_failed`` (one call per arm), the
+        arms after one whose call raised run theirs instead."""
         outcomes: list[_Outcome] = []
-        for call in calls:
+        failed = False
+        for k, call in enumerate(calls):
             try:
-                outcomes.append((call(), None))
+                outcomes.append(((once_failed[k] if failed and once_failed else call)(), None))
             except Exception as exc:  # noqa: BLE001 - raised by _raise_first once every arm had its turn
                 outcomes.append((None, exc))
+                failed = True
         return outcomes
 
     def _raise_first(self, outcomes: Sequence[_Outcome]) -> None:
