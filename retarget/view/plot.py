@@ -31,7 +31,7 @@ from retarget.errors import ConfigError  # noqa: E402
 __all__ = ["Telemetry", "plot_telemetry", "read_telemetry"]
 
 CMD, PRESENT, LIMIT, LEAD, IK = "#2a6edc", "#ff8c00", "#dc1e1e", "#cccccc", "#6a3d9a"
-ARM_COLOURS = ("#6a3d9a", "#1b9e77", "#d95f02")  #: a rig's arms' errors, in rig order
+ARM_COLOURS = (IK, "#1b9e77", "#d95f02")  #: each arm's errors, in rig order (one arm's: IK's), then again
 
 
 @dataclass(frozen=True)
@@ -189,7 +189,8 @@ def y_range(values: np.ndarray, limits: tuple[float, float]) -> tuple[float, flo
 def _ik(ax: Axes, t: np.ndarray, tel: Telemetry) -> None:
     """The IK error (solid) and the tracking error (thin, where the file has it) of each arm, in mm."""
     top = 1.0
-    for arm, color in zip(tel.arms, ARM_COLOURS if len(tel.arms) > 1 else (IK,), strict=False):
+    for k, arm in enumerate(tel.arms):  # (every arm: a rig of more arms than colours repeats them)
+        color = ARM_COLOURS[k % len(ARM_COLOURS)]
         name = f"{arm} " if arm else ""
         ik = tel[f"{_prefix(arm)}ik_error_mm"]
         ax.plot(t, ik, color=color, lw=0.8, label=f"{name}IK error")
