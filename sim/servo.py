@@ -286,8 +286,8 @@ class SimServo(WriteRules):
         """An instruction packet for ``dxl_id`` is on the wire at clock time ``t`` (its CRC good or not): brought up to
         ``t`` (a Bus Watchdog due before then trips on time), then :meth:`instruction_received` when it is its own."""
         self.update(t)
-        if crc_ok and (dxl_id == BROADCAST_ID or dxl_id == self._mem[_ID] or dxl_id == self.secondary_id):
-            self._watchdog.packet(t)
+        if crc_ok and self.hears(dxl_id):
+            self.instruction_received(t)
 
     @property
     def torque(self) -> bool:
