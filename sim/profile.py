@@ -117,14 +117,9 @@ def velocity_profile(t0: float, p0: float, v0: float, goal: float, vmax: float, 
             t, p, v = _append(segs, t, p, s * vmax, 0.0, max(cruise, 0.0) / vmax)
             _append(segs, t, p, s * vmax, -s * accel, t3)
             shape = 3
-        else:  # a triangle (every tick's small step): _append's arithmetic and _segment, inline
-            a, duration = s * accel, (peak - u) / accel
-            if duration > 0:
-                segs.append(tuple.__new__(Segment, (t, p, v, a, duration)))
-            t, p = t + duration, p + v * duration + 0.5 * a * duration * duration
-            duration = peak / accel
-            if duration > 0:
-                segs.append(tuple.__new__(Segment, (t, p, s * peak, -s * accel, duration)))
+        else:  # a triangle (every tick's small step)
+            t, p, v = _append(segs, t, p, v, s * accel, (peak - u) / accel)
+            _append(segs, t, p, s * peak, -s * accel, peak / accel)
             shape = 2
         return tuple.__new__(Trajectory, (tuple(segs), float(goal), shape if segs else 0))  # Trajectory(...), faster
     raise AssertionError("velocity_profile did not converge")  # pragma: no cover

@@ -22,7 +22,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 from typing import NamedTuple
 
-from drivers.control_table import BROADCAST_ID, CRC_HIGH_STEP, CRC_TABLE, Instruction, crc16
+from drivers.control_table import BROADCAST_ID, Instruction, crc16
 
 HEADER = b"\xff\xff\xfd\x00"
 STATUS = Instruction.STATUS
@@ -103,10 +103,8 @@ def build_fast_read_status(slots: Iterable[tuple[int, int, bytes]]) -> bytes:
         chunk = bytes((error & 0xFF, dxl_id & 0xFF)) + bytes(data)
         packet += chunk
         crc = crc16(chunk, crc)
-        low, high = crc & 0xFF, crc >> 8
-        packet += bytes((low, high))
-        x = crc ^ (low << 8 | high)  # crc16 of the two CRC bytes just added, inline
-        crc = CRC_HIGH_STEP[x >> 8] ^ CRC_TABLE[x & 0xFF]
+        packet += bytes((crc & 0xFF, crc >> 8))
+        crc = crc16(packet[-2:], crc)
     return bytes(packet)
 
 
