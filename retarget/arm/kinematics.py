@@ -177,6 +177,38 @@ class Chain:
         out: np.ndarray = p.T
         return out
 
+    def tool_jacobians(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Tool points ``(n, 3)`` metres and their Jacobians ``(n, 3, n_joints)`` metres per radian, base frame, of
+        joint angles ``Q`` ``(n, n_joints)`` radians: column ``i`` is joint ``i``'s axis (world) x (tool point -
+        the joint's origin), the tool point's velocity per rad/s of that joint.  Entry-major as
+        :meth:`tool_points`, the points equal to it.
+
+        >>> from retarget.arm.load import load_arm
+        >>> arm = load_arm("wx250s")
+        >>> Q = np.stack([arm.home, arm.rest])
+        >>> points, J = arm.chain.tool_jacobians(Q)
+        >>> step = np.zeros(arm.n_joints); step[1] = 1e-6  # the shoulder, a micro-radian
+        >>> moved = (arm.chain.tool_points(Q + step) - points) / 1e-6
+        >>> J.shape, bool(np.allclose(moved, J[:, :, 1], atol=1e-5))
+        ((2, 3, 6), True)
+        """
+        Q = self._check(Q, "Q")
+        if Q.ndim != 2:
+            raise ValueError(f"Expected Q of shape (n, {self.n}), got {Q.shape}")
+        R = np.zeros((3, 3, Q.shape[0]))
+        R[0, 0] = R[1, 1] = R[2, 2] = 1.0
+        p = np.zeros((3, Q.shape[0]))
+        axes, origins = np.empty((self.n, 3, Q.shape[0])), np.empty((self.n, 3, Q.shape[0]))
+        for i in range(self.n):
+            origin = self.origins[i]
+            p += np.einsum("rkn,k->rn", R, origin[:3, 3])
+            R = np.einsum("rkn,kc->rcn", R, origin[:3, :3])
+            axes[i], origins[i] = np.einsum("rkn,k->rn", R, self.axes[i]), p
+            R = np.einsum("rkn,kcn->rcn", R, _axis_angle_entries(self.axes[i], Q[:, i]))
+        p += np.einsum("rkn,k->rn", R, self.tool[:3, 3])
+        jacobians = np.cross(axes, p[None] - origins, axis=1)  # (n_joints, 3, n)
+        return np.ascontiguousarray(p.T), np.ascontiguousarray(jacobians.transpose(2, 1, 0))
+
     def frames_batch(self, Q: np.ndarray) -> np.ndarray:
         """Every link frame ``(n, n_joints + 1, 4, 4)`` for joint angles ``Q`` ``(n, n_joints)`` radians: the base
         frame (identity) first, then each joint's child frame; base frame, metres.

@@ -81,6 +81,22 @@ def test_fk_paths_agree(name, seed):
         np.testing.assert_allclose(np.reshape(f[3:], (3, 3)), T[:3, :3], atol=1e-12)
 
 
+@pytest.mark.parametrize("name", ARMS)
+@pytest.mark.parametrize("seed", [0, 1])
+def test_tool_jacobians_are_the_tool_points_derivatives(name, seed):
+    """Each column against a central difference of the tool point (1e-6 rad each way), on random poses."""
+    arm = load_arm(name)
+    Q = np.random.default_rng(seed).uniform(arm.lower, arm.upper, (15, arm.n_joints))
+    points, J = arm.chain.tool_jacobians(Q)
+    assert J.shape == (15, 3, arm.n_joints)
+    np.testing.assert_allclose(points, arm.chain.tool_points(Q), atol=1e-14)
+    for j in range(arm.n_joints):
+        step = np.zeros(arm.n_joints)
+        step[j] = 1e-6
+        moved = (arm.chain.tool_points(Q + step) - arm.chain.tool_points(Q - step)) / 2e-6
+        np.testing.assert_allclose(J[:, :, j], moved, atol=1e-7)
+
+
 def test_origin_rpy_and_general_axes():
     """A joint with an rpy origin, a skew axis and a tool rotation: all FK paths agree with a direct product."""
     arm = load_arm("px100")
@@ -129,8 +145,17 @@ def test_rpy_gimbal_lock():
         (lambda arm: arm.fk(np.zeros((2, 6))), r"use fk_batch"),
         (lambda arm: fk_batch(arm, np.zeros(6)), r"Expected Q of shape \(n, 6\), got \(6,\)"),
         (lambda arm: arm.chain.tool_points(np.zeros(6)), r"Expected Q of shape \(n, 6\), got \(6,\)"),
+        (lambda arm: arm.chain.tool_jacobians(np.zeros(6)), r"Expected Q of shape \(n, 6\), got \(6,\)"),
+        (lambda arm: arm.chain.tool_jacobians(np.zeros((3, 5))), r"Expected Q of shape \(\.\.\., 6\) for 6 joints"),
     ],
-    ids=["short-q", "batch-to-fk", "vector-to-batch", "vector-to-tool-points"],
+    ids=[
+        "short-q",
+        "batch-to-fk",
+        "vector-to-batch",
+        "vector-to-tool-points",
+        "vector-to-jacobians",
+        "short-jacobians",
+    ],
 )
 def test_fk_shape_errors(call, message):
     with pytest.raises(ValueError, match=message):
