@@ -14,26 +14,27 @@ all joints at once, on the goal path ``g`` ``(n, n_joints)``:
    it, not wherever it would help a little):
 
        minimise  1/2 sum (q - g)^2 + speed_cost/2 sum max(0, |dq| / vmax - easy_speed)^2
-       subject to |dq| <= vmax,  |d^2 q| <= 0.97 amax   (room for step 3 to catch up: ``_ACCEL_SHARE``).
+       subject to |dq| <= vmax,  |d^2 q| <= 0.97 amax   (room for step 3 to catch up: ``ACCEL_SHARE``),
 
-   It is solved approximately by ``iterations`` sweeps of ADMM (Boyd et al., "Distributed optimization and
-   statistical learning via the alternating direction method of multipliers", 2011, sec. 5: a quadratic cost
-   with box constraints on linear maps of ``q``).  The path is padded (``q_start`` before, the last goal after)
-   and mirrored, so the differences are circular and each sweep's linear solve is diagonal in the Fourier basis:
-   one real FFT pair over all these joints together.  Unlike a pass of the profile that only follows, it turns
-   early for a peak *and* reaches as far toward it as the limits allow (the profile's forward and backward passes
-   averaged, this module's earlier method, fell short of fast reversals: wx250s on ``motion_dance.bvh`` left,
-   tracking p95 49 mm against ~30 now);
+   by ADMM (:mod:`~retarget.control.fit`).  Unlike a pass of the profile that only follows, it turns early for a
+   peak *and* reaches as far toward it as the limits allow (the profile's forward and backward passes averaged,
+   this module's earlier method, fell short of fast reversals: wx250s on ``motion_dance.bvh`` left, tracking p95
+   49 mm against ~30 with this fit, 23 with the next).  Given the task's ``jacobians`` (the tool point's, a clip
+   played position only: :func:`solve_and_plan`), the first term is the tool point's error instead, linearised at
+   the goals, and every joint that moves plans with the others: where one must fall behind its goal, the others
+   make up for it (the arm's redundancy, which a fit joint by joint leaves unused).  wx250s, tracking p95 with the
+   joints' fit -> the task's: motion_dance right 13.3 -> 9.7 mm, left 29.9 -> 23.1; motion_walk left 19.7 -> 8.7;
+   unity_walk_random right 12.5 -> 4.5; motion_basket right 2.6 -> 1.0 (targets unfiltered, bench_smooth.py);
 3. a last forward pass of the profile over that path from the start pose at rest: the plan's first step starts
    from rest at ``q_start``, and the result is exactly what the profile allows (ADMM's few sweeps leave the
    constraints nearly but not exactly met), so the loop's own limiter, fed the plan tick by tick, reproduces it.
 
-The cost: on ``motion_dance.bvh`` (1 559 ticks, three or four joints to plan) 6-7 ms in all, less than the earlier
-method's 8-9 ms: 20 sweeps of a few numpy passes and one FFT pair each, then the last pass (about 0.3 us per joint
-and tick where the profile has work to do; the slots where the joint stays on its goal are copied,
-:func:`_follow`).  A limit of the method: a clip that starts in a motion which keeps a joint at its acceleration
-limit from the first tick on (the plan itself starts at rest) may see that joint a quarter period late until the
-motion eases; the shared clips start still.
+The cost: on ``motion_dance.bvh`` (1 559 ticks, three or four joints to plan) the joints' fit takes 6-7 ms in all
+(20 sweeps of a few numpy passes and one FFT pair each), the task's 20-28 ms (60 sweeps, a ``k x k`` product per
+tick in each, and the Jacobians), then the last pass (about 0.3 us per joint and tick where the profile has work to
+do; the slots where the joint stays on its goal are copied, :func:`_follow`).  A limit of the method: a clip that
+starts in a motion which keeps a joint at its acceleration limit from the first tick on (the plan itself starts at
+rest) may see that joint a quarter period late until the motion eases; the shared clips start still.
 
 **Guarantee**: every step of the plan, from ``q_start`` at rest, is within ``max_step``, every change of step
 within ``max_accel``, and every pose within ``lower..upper`` (the last pass is the profile itself, which brakes
@@ -52,6 +53,8 @@ from typing import Protocol
 import numpy as np
 import numpy.typing as npt
 
+from retarget.arm.kinematics import Chain
+from retarget.control.fit import check_task, fit_joints, fit_task, task_of
 from retarget.control.profile import stop_speed
 from retarget.ik.bound import State, shared_bound
 from retarget.ik.result import IKResult
@@ -60,18 +63,11 @@ __all__ = ["PathPlan", "plan_path", "solve_and_plan"]
 
 Array = npt.NDArray[np.float64]
 
-ITERATIONS = 20  #: ADMM sweeps (15-40 give the same tracking on the shared clips within ~0.5 mm p95)
+ITERATIONS = 20  #: ADMM sweeps of the joints' fit (15-40 give the same tracking on the shared clips within ~0.5 mm p95)
+TASK_ITERATIONS = 60  #: ADMM sweeps of the task's fit (slower to settle: wx250s on motion_basket right p95 1.15 mm
+#: after 20, 1.04 after 40, 1.03 after 60, 0.99 after 300)
 SPEED_COST = 0.2  #: the soft cost on speeds above ``easy_speed`` of the limit, per (share of the limit)^2 and slot
 EASY_SPEED = 0.85  #: the fraction of each joint's velocity limit above which speed costs
-#: ADMM's penalty weights of the speed and the acceleration constraints, each per (share of its limit)^2: the
-#: quickest to settle on the shared clips at 100 Hz (a step's end within 0.5 % of the goal after 20 sweeps).  Being
-#: relative to the limits per slot, the costs and weights keep their meaning at any rate.
-_RHO_SPEED, _RHO_ACCEL = 0.1, 0.02
-#: the share of the acceleration limit the least-squares path may use: the last pass needs room to catch up where
-#: ADMM's few sweeps left the path slightly over the limit (planned to the full limit, a joint that fell behind there
-#: stays behind for as long as the goal keeps it at the limit: a quarter period on a long too-sharp oscillation)
-_ACCEL_SHARE = 0.97
-_PAD = 50  #: slots of padding at each end (at q_start before, at the last goal after)
 #: the look-ahead IK pass's tolerance, a share of the solver's own (``CCDSolver.tolerance``, 1 mm: the causal
 #: loop's).  The early-out leaves a tick anywhere within the tolerance (a DLS step aims at a quarter of it), and the
 #: plan follows those solutions where the limits allow, so at 1 mm the error saws between ~0 and 0.25 mm from tick
@@ -89,9 +85,11 @@ def plan_path(
     upper: npt.ArrayLike,
     max_step: npt.ArrayLike,
     max_accel: npt.ArrayLike,
-    iterations: int = ITERATIONS,
+    iterations: int | None = None,
     speed_cost: float = SPEED_COST,
     easy_speed: float = EASY_SPEED,
+    jacobians: npt.ArrayLike | None = None,
+    residuals: npt.ArrayLike | None = None,
 ) -> Array:
     """The joint path ``(n, n_joints)`` rad nearest ``goals`` ``(n, n_joints)`` rad that the limits allow, looking
     ahead (see the module docstring).
@@ -99,9 +97,15 @@ def plan_path(
     ``q_start`` ``(n_joints,)`` rad: the pose before the first goal, at rest (inside the limits);
     ``lower``/``upper`` ``(n_joints,)`` rad: the joint limits; ``max_step`` ``(n_joints,)`` rad per slot (> 0):
     the velocity limit; ``max_accel`` ``(n_joints,)`` rad per slot^2 (> 0): the acceleration limit;
-    ``iterations`` (>= 0) ADMM sweeps (0: the profile follows the goals, causally); ``speed_cost`` (>= 0) and
+    ``iterations`` (>= 0; default :data:`ITERATIONS`, with ``jacobians`` :data:`TASK_ITERATIONS`) ADMM sweeps (0:
+    the profile follows the goals, causally); ``speed_cost`` (>= 0) and
     ``easy_speed`` (0..1): the soft cost on speeds above that fraction of the limit.  Never exceeds the limits (from
     ``q_start`` at rest); goals outside the joint limits are followed to the limit.
+
+    ``jacobians`` ``(n, d, n_joints)`` (metres per rad: how the task point moves with each joint at each goal) and
+    ``residuals`` ``(n, d)`` metres (the task point of each goal minus its target): the fit is then to the task, not
+    the joints (:func:`fit_task`): a joint that falls behind its goal is made up for by the others where
+    they can, and every joint that moves and matters to the task is planned with the ones that must be.
 
     A step of 1 rad in one joint, at most 0.1 rad per slot and 0.02 rad per slot^2: the plan starts before the
     step (at slot 20) and ends after it, symmetrically (the causal limiter would only start at the step); like any
@@ -122,12 +126,13 @@ def plan_path(
     n, m = g.shape
     q0, lo, hi, vmax, amax = (np.broadcast_to(np.asarray(x, dtype=np.float64), (m,)) for x in
                               (q_start, lower, upper, max_step, max_accel))  # fmt: skip
-    if iterations < 0:
+    if iterations is not None and iterations < 0:
         raise ValueError(f"Expected iterations >= 0, got {iterations}")
     if np.any(vmax <= 0) or np.any(amax <= 0):
         raise ValueError("Expected max_step and max_accel > 0")
     if speed_cost < 0 or not 0.0 < easy_speed <= 1.0:
         raise ValueError(f"Expected speed_cost >= 0 and 0 < easy_speed <= 1, got {speed_cost} and {easy_speed}")
+    arrays = check_task(jacobians, residuals, n, m)
     out = g.copy()
     if n == 0:
         return out
@@ -135,9 +140,15 @@ def plan_path(
     hard = [j for j in range(m) if not _feasible(g[:, j], float(q0[j]), limits[j])]
     if not hard:
         return out
+    task = None if arrays is None else task_of(g, *arrays, hard)
+    if task is not None:
+        hard = task.joints
     aims = g[:, hard].T
-    if iterations > 0:
-        aims = _least_squares(aims, q0[hard], vmax[hard], amax[hard], iterations, speed_cost, easy_speed)
+    sweeps = iterations if iterations is not None else ITERATIONS if task is None else TASK_ITERATIONS
+    if sweeps > 0 and task is not None:
+        aims = fit_task(aims, q0[hard], vmax[hard], amax[hard], sweeps, speed_cost, easy_speed, task)
+    elif sweeps > 0:
+        aims = fit_joints(aims, q0[hard], vmax[hard], amax[hard], sweeps, speed_cost, easy_speed)
     for row, j in zip(aims.tolist(), hard, strict=True):
         out[:, j] = _follow(row, float(q0[j]), limits[j])
     return out
@@ -153,71 +164,6 @@ def _feasible(path: Array, q0: float, limits: tuple[float, float, float, float])
         return False
     far = vmax * vmax / (2.0 * amax) + vmax + amax  # profile.braking_run: farther off a limit never binds
     return bool(path.min() - lo > far and hi - path.max() > far)
-
-
-def _least_squares(goal: Array, q0: Array, vmax: Array, amax: Array, iterations: int, speed_cost: float,
-                   easy_speed: float) -> Array:  # fmt: skip
-    """The paths ``(k, n)`` rad nearest ``goal`` ``(k, n)`` rad by the module docstring's cost, approximately
-    (``iterations`` ADMM sweeps, scaled form), each joint from ``q0`` ``(k,)`` rad with its own ``vmax`` and
-    ``amax`` ``(k,)`` per slot.  Not yet exactly within the limits: the profile's last pass makes it so."""
-    k, n = goal.shape
-    size = _fft_size(2 * (n + 2 * _PAD))
-    half = size // 2
-    x = np.empty((k, size))
-    x[:, :_PAD] = q0[:, None]
-    x[:, _PAD : _PAD + n] = goal
-    x[:, _PAD + n : half] = goal[:, -1:]
-    x[:, half:] = x[:, half - 1 :: -1]  # mirrored: a circular path whose differences are circular too
-    lam = 2.0 - 2.0 * np.cos(2.0 * np.pi * np.arange(half + 1) / size)  # |1 - e^-iw|^2, the difference's gain
-    rho1, rho2 = (_RHO_SPEED / vmax**2)[:, None], (_RHO_ACCEL / amax**2)[:, None]  # per rad^2 (per slot)
-    inverse = 1.0 / (1.0 + rho1 * lam + rho2 * lam * lam)  # (I + rho1 D'D + rho2 D'D'DD)^-1, diagonal
-    fixed = np.fft.rfft(x) * inverse
-    easy, vcap, acap = (easy_speed * vmax)[:, None], vmax[:, None], (_ACCEL_SHARE * amax)[:, None]
-    keep = _RHO_SPEED / (_RHO_SPEED + speed_cost)  # the share of a speed above ``easy`` that the soft cost keeps
-    q, d1 = x, _diff(x)
-    z1, z2 = np.clip(d1, -vcap, vcap), np.clip(_diff(d1), -acap, acap)
-    u1, u2 = np.zeros_like(x), np.zeros_like(x)
-    rfft, irfft, clip = np.fft.rfft, np.fft.irfft, np.clip
-    for _ in range(iterations):
-        r = _diff_t(_diff_t(rho2 * (z2 - u2)) + rho1 * (z1 - u1))
-        q = irfft(fixed + inverse * rfft(r), n=size)
-        d1 = _diff(q)
-        d2 = _diff(d1)
-        u1 += d1
-        within = clip(u1, -easy, easy)
-        z1 = clip(within + keep * (u1 - within), -vcap, vcap)  # the prox of the soft cost and the hard limit
-        u1 -= z1
-        u2 += d2
-        z2 = clip(u2, -acap, acap)
-        u2 -= z2
-    return q[:, _PAD : _PAD + n]
-
-
-def _diff(y: Array) -> Array:
-    """The circular backward difference along the last axis: ``y[i] - y[i - 1]``."""
-    out = np.empty_like(y)
-    np.subtract(y[:, 1:], y[:, :-1], out=out[:, 1:])
-    np.subtract(y[:, 0], y[:, -1], out=out[:, 0])
-    return out
-
-
-def _diff_t(y: Array) -> Array:
-    """The transpose of :func:`_diff`: ``y[i] - y[i + 1]``, circular."""
-    out = np.empty_like(y)
-    np.subtract(y[:, :-1], y[:, 1:], out=out[:, :-1])
-    np.subtract(y[:, -1], y[:, 0], out=out[:, -1])
-    return out
-
-
-def _fft_size(n: int) -> int:
-    """The smallest even length >= ``n`` with no prime factor above 5 (a fast FFT length)."""
-    best = 1 << max(1, (n - 1).bit_length())
-    for odd in (3, 5, 9, 15, 25, 27, 45, 75, 81, 125, 135, 225):
-        size = 2 * odd
-        while size < n:
-            size *= 2
-        best = min(best, size)
-    return best
 
 
 def _follow(goal: list[float], q: float, limits: tuple[float, float, float, float], *, jump: bool = True
@@ -350,11 +296,14 @@ def solve_and_plan(
     upper: Array,
     max_step: Array,
     max_accel: Array,
+    chain: Chain | None = None,
 ) -> PathPlan:
     """IK of every target ``positions`` ``(n, 3)`` m (``rotations`` ``(n, 3, 3)`` or None), each warm-started from
     the last solution (the first from ``q_start`` ``(n_joints,)`` rad), then :func:`plan_path` of the solutions from
-    ``q_start`` at rest (limits as there, per slot).  With a collision-aware solver (its ``collision`` model) each
-    planned move, from ``q_start`` then tick to tick, is bounded from the notes its IK pass made
+    ``q_start`` at rest (limits as there, per slot).  With the arm's ``chain`` and no rotations the plan fits the tool
+    point, not the joints (:func:`plan_path`'s ``jacobians`` and ``residuals``, at the solutions; an orientation
+    target keeps the joints' fit, which holds the whole pose).  With a collision-aware solver (its ``collision``
+    model) each planned move, from ``q_start`` then tick to tick, is bounded from the notes its IK pass made
     (:meth:`~retarget.ik.bound.ClearanceBound.prove`): the loop's goal check takes a move's bound when it keeps the
     clearance and checks the move itself otherwise."""
     t0 = time.perf_counter()
@@ -364,7 +313,12 @@ def solve_and_plan(
     try:
         results, index = _solve(solver, positions, rotations, q_start, notes, max_step)
         qs = np.array([r.q for r in results], dtype=np.float64).reshape(len(results), len(q_start))
-        planned = plan_path(qs, q_start, lower=lower, upper=upper, max_step=max_step, max_accel=max_accel)
+        jacobians = residuals = None
+        if chain is not None and rotations is None:  # position only: plan to the tool point
+            tool, jacobians = chain.tool_jacobians(qs)
+            residuals = tool - positions
+        planned = plan_path(qs, q_start, lower=lower, upper=upper, max_step=max_step, max_accel=max_accel,
+                            jacobians=jacobians, residuals=residuals)  # fmt: skip
     except BaseException:
         if bound is not None:
             bound.record(False)

@@ -245,6 +245,7 @@ class ControlLoop:
             upper=arm.upper,
             max_step=arm.max_velocity * cfg.velocity_scale / cfg.rate,
             max_accel=arm.max_acceleration / cfg.rate**2,
+            chain=arm.chain,
         )
         self._plan_from = q0
         log.info("look-ahead: %d ticks solved and planned in %.3f s", n, self._plan.seconds)
