@@ -7,8 +7,8 @@ from a rest pose: there is no arm; on a bus, replay's lead-in moves there first
 and then commands this trajectory).  By default the whole clip is solved first and the joint path planned
 ahead within the velocity and acceleration limits, so the arm does not lag fast motion (``--no-look-ahead``: each
 tick solved and limited as it comes, as ``replay --loop`` runs).  The clip's targets are low-passed without lag
-first (``--filter-cutoff``, default 6 Hz; ``--no-filter``).  Columns: ``time_s`` then one ``<joint>_rad`` per
-joint (radians, the arm's joint order).
+first (``--filter-cutoff``, default ``auto``: from the clip's noise; ``--no-filter``).  Columns: ``time_s`` then
+one ``<joint>_rad`` per joint (radians, the arm's joint order).
 """
 
 from __future__ import annotations

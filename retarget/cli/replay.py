@@ -53,7 +53,6 @@ from retarget.control.tracking import TickTracker
 from retarget.errors import BusError, ConfigError
 from retarget.mapping import Targets, retarget_targets
 from retarget.mapping.config import MappingConfig
-from retarget.mapping.filter import DEFAULT_CUTOFF_HZ
 
 T = TypeVar("T")
 
@@ -127,10 +126,10 @@ def add_mapping_arguments(parser: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--filter-cutoff",
         default=None,
-        metavar="HZ",
-        help=f"low-pass the clip's mapped targets forward and backward before the workspace clamp: zero lag, "
-        f"-6 dB at HZ, 2nd-order Butterworth run twice (default {DEFAULT_CUTOFF_HZ:g}, or the arm file's "
-        "cutoff_hz; 0.1-100)",
+        metavar="HZ|auto",
+        help="low-pass the clip's mapped targets forward and backward before the workspace clamp: zero lag, "
+        "-6 dB at HZ, 2nd-order Butterworth run twice (0.1-100); default auto, or the arm file's cutoff_hz: "
+        "chosen from the clip's own noise (none for a clean capture; -v logs the choice)",
     )
     g.add_argument("--no-filter", action="store_true", help="command the mapped targets unfiltered (--filter-cutoff 0)")
 

@@ -21,7 +21,8 @@ The ``[mapping]`` table of an arm file (every key optional; CLI flags override):
     floor = 0.03                  # lowest target height, metres
     orientation_weight = 0.0      # > 0: follow the hand's orientation too
     joint_weights = { forearm_roll = 0.001 }   # IK weights by joint (or a list, one per joint)
-    cutoff_hz = 6.0               # zero-phase low-pass of a clip's targets (no lag, -6 dB here); 0 = off
+    cutoff_hz = "auto"            # zero-phase low-pass of a clip's targets (no lag, -6 dB at the cutoff): "auto"
+                                  # (from the clip's noise), Hz, or 0 = off
 
 This module is math only (it imports neither drivers, sim nor serial).
 """
@@ -38,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from retarget.errors import ConfigError
-from retarget.mapping.filter import DEFAULT_CUTOFF_HZ
+from retarget.mapping.filter import AUTO, DEFAULT_CUTOFF, Cutoff
 
 __all__ = ["Axis", "MappingConfig", "Side"]
 
@@ -97,8 +98,9 @@ class MappingConfig:
     #: IK per-joint weights in (0, 1]: ``{joint: w}`` overriding the defaults (see :func:`ik_weights`), or all of them
     joint_weights: tuple[tuple[str, float], ...] | tuple[float, ...] | None = None
     #: Hz, the zero-phase low-pass of a clip's mapped targets before the workspace clamp (no lag, -6 dB at the
-    #: cutoff; :func:`~retarget.mapping.filter.zero_phase`); 0 = unfiltered
-    cutoff_hz: float = DEFAULT_CUTOFF_HZ
+    #: cutoff; :func:`~retarget.mapping.filter.zero_phase`); 0 = unfiltered; ``"auto"``: chosen from the clip's
+    #: noise (:func:`~retarget.mapping.cutoff.auto_cutoff`)
+    cutoff_hz: Cutoff = DEFAULT_CUTOFF
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -195,6 +197,8 @@ def _convert(name: str, raw: Any, *, key: str, path: str | PathLike[str] | None)
             if isinstance(raw, bool) or len(raw) != 3:
                 raise ValueError
             return tuple(float(v) for v in raw)
+        if name == "cutoff_hz" and isinstance(raw, str) and raw.strip().lower() == AUTO:
+            return AUTO
         if isinstance(raw, bool):
             raise ValueError
         return float(raw)
@@ -216,7 +220,7 @@ _EXPECTED = {
     "floor": "a finite number of metres",
     "orientation_weight": "a number >= 0",
     "joint_weights": "weights in (0, 1]: a table {joint = w} or one number per joint",
-    "cutoff_hz": f"a cutoff from {CUTOFF_RANGE[0]:g} to {CUTOFF_RANGE[1]:g} Hz, or 0 (no filter)",
+    "cutoff_hz": f"'auto', a cutoff from {CUTOFF_RANGE[0]:g} to {CUTOFF_RANGE[1]:g} Hz, or 0 (no filter)",
 }
 
 
@@ -232,6 +236,8 @@ def _check(name: str, value: Any, *, key: str, path: str | PathLike[str] | None)
         ok = value is None or (len(value) == 3 and all(math.isfinite(v) for v in value))
     elif name == "joint_weights":
         ok = value is None or isinstance(value, tuple)
+    elif name == "cutoff_hz" and value == AUTO:
+        ok = True
     else:
         ok = isinstance(value, int | float) and math.isfinite(value)
         if ok and name == "arm_scale":

@@ -6,10 +6,12 @@
   the two passes cancel each other's phase,
   so it adds **no lag**, and the gain is that of a 4th-order filter (-6 dB at the cutoff).  The ends are
   padded with an odd reflection (as scipy's ``filtfilt``) so a clip's first and last frames stay put.
-  On by default: :func:`~retarget.mapping.retarget_targets` filters a clip's mapped points at
-  ``MappingConfig.cutoff_hz`` (default :data:`DEFAULT_CUTOFF_HZ`) *before* the workspace clamp and the
-  collision push-out, so every filtered target is still reachable; ``cutoff_hz = 0`` (``--no-filter``) turns
-  it off.  A cutoff at or above the clip's Nyquist frequency (half its frame rate) filters nothing.
+  :func:`~retarget.mapping.retarget_targets` filters a clip's mapped points at ``MappingConfig.cutoff_hz``
+  *before* the workspace clamp and the collision push-out, so every filtered target is still reachable.  By
+  default (:data:`DEFAULT_CUTOFF`, ``"auto"``) the cutoff is chosen from the clip's own noise
+  (:func:`~retarget.mapping.cutoff.auto_cutoff`: none for a clean capture, lower the noisier it is); a number
+  sets it; ``cutoff_hz = 0`` (``--no-filter``) turns it off.  A cutoff at or above the clip's Nyquist frequency
+  (half its frame rate) filters nothing.
 * :class:`OneEuro`: a causal filter for targets that arrive live (Casiez, Roussel and Vogel, "1 Euro filter:
   a simple speed-based low-pass filter for noisy input in interactive systems", CHI 2012): a one-pole low-pass
   whose cutoff rises with the speed, ``min_cutoff + beta x |speed|``, so it smooths a still hand hard and a
@@ -26,19 +28,22 @@ from __future__ import annotations
 
 import functools
 import math
+from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
 
 from retarget.errors import require_positive
 
-__all__ = ["DEFAULT_BETA", "DEFAULT_CUTOFF_HZ", "DEFAULT_MIN_CUTOFF_HZ", "OneEuro", "zero_phase"]
+__all__ = ["AUTO", "DEFAULT_BETA", "DEFAULT_CUTOFF", "DEFAULT_MIN_CUTOFF_HZ", "Cutoff", "OneEuro", "zero_phase"]
 
-#: Hz, the zero-phase cutoff of a clip's targets (Winter: 4-6 Hz for human kinematics).  The high end: the filter
-#: only has to keep the capture's noise out; the look-ahead plan (retarget.control.plan) keeps the motion within the
-#: joints' speed and acceleration, so cutting the human's own fast moves too (4 Hz) only costs tracking: wx250s on
-#: motion_walk right, p95 2.0 mm at 6 Hz against 3.6 at 4 (bench/bench_smooth.py)
-DEFAULT_CUTOFF_HZ = 6.0
+AUTO: Literal["auto"] = "auto"  #: ``cutoff_hz``: chosen from the clip (:func:`~retarget.mapping.cutoff.auto_cutoff`)
+Cutoff = float | Literal["auto"]  #: a zero-phase cutoff: Hz (0: none), or :data:`AUTO`
+#: the zero-phase cutoff of a clip's targets.  The filter only has to keep the capture's noise out: the look-ahead
+#: plan (retarget.control.plan) keeps the motion within the joints' speed and acceleration.  A fixed one cuts a
+#: clean capture's own fast moves: Winter's 6 Hz for human kinematics took p95 2.1 mm off the path of wx250s on
+#: motion_basket right (bench/bench_smooth.py), while its noise is 0.2 mm
+DEFAULT_CUTOFF: Cutoff = AUTO
 DEFAULT_MIN_CUTOFF_HZ = 1.0  #: Hz, the One-Euro cutoff of a still hand (Casiez et al.'s starting point)
 DEFAULT_BETA = 20.0  #: Hz per m/s, how fast the One-Euro cutoff rises with the hand's speed
 
@@ -95,7 +100,7 @@ def _one_pass(x: Array, b: tuple[float, float, float], a: tuple[float, float]) -
     return y
 
 
-def zero_phase(x: npt.ArrayLike, rate_hz: float, cutoff_hz: float = DEFAULT_CUTOFF_HZ) -> Array:
+def zero_phase(x: npt.ArrayLike, rate_hz: float, cutoff_hz: float) -> Array:
     """``x`` ``(n, ...)`` sampled at ``rate_hz``, low-passed forward and backward at ``cutoff_hz`` (no lag).
 
     ``cutoff_hz <= 0``, or at or above the Nyquist frequency, returns a copy unchanged.

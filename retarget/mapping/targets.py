@@ -24,7 +24,8 @@ the ``[mapping]`` table of an arm description and by CLI flags
    shoulder joint, so a hanging arm maps in front of the robot, not into the
    base).
 
-The mapped points of a clip are then low-passed forward and backward at ``cutoff_hz`` (6 Hz by default;
+The mapped points of a clip are then low-passed forward and backward at ``cutoff_hz`` (by default chosen from
+the clip's own noise, :func:`~retarget.mapping.cutoff.auto_cutoff`: none for a clean capture;
 :func:`~retarget.mapping.filter.zero_phase`: no lag, -6 dB at the cutoff), the hand's orientations too, and
 only then clamped: targets outside the :class:`~retarget.mapping.workspace.Workspace` (a shell
 ``min_reach..max_reach`` around the robot's shoulder pivot, above ``floor``, out of blocked zones) are pulled
@@ -47,6 +48,7 @@ Units: BVH file units in, metres and radians out.  This module is math only
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -58,8 +60,11 @@ from retarget.bvh.motion import ArmChain, Motion
 from retarget.errors import BvhError
 from retarget.mapping.body import mapping_frames
 from retarget.mapping.config import MappingConfig
-from retarget.mapping.filter import DEFAULT_CUTOFF_HZ, zero_phase
+from retarget.mapping.cutoff import auto_cutoff
+from retarget.mapping.filter import AUTO, DEFAULT_CUTOFF, Cutoff, zero_phase
 from retarget.mapping.workspace import Workspace, arm_geometry, default_origin
+
+log = logging.getLogger(__name__)
 
 if TYPE_CHECKING:
     from retarget.collision import CollisionModel
@@ -109,6 +114,7 @@ class Targets:
     #: filtered); None: not filtered (``raw`` is the mapped points)
     unfiltered: np.ndarray | None = None
     cutoff_hz: float = 0.0  #: Hz, the zero-phase filter's cutoff applied to ``raw`` (and rotations); 0: none
+    cutoff_auto: bool = False  #: ``cutoff_hz`` was chosen from the clip (``"auto"``), 0 included
 
     @classmethod
     def from_raw(
@@ -120,13 +126,14 @@ class Targets:
         config: MappingConfig | None = None,
         rotations: np.ndarray | None = None,
         scale: float = 1.0,
-        cutoff_hz: float = 0.0,
+        cutoff_hz: Cutoff = 0.0,
     ) -> Targets:
         """Targets from tool points ``raw`` ``(n_frames, 3)`` metres (base frame), clamped into ``workspace``.
 
         ``cutoff_hz > 0``: first low-pass ``raw`` and ``rotations`` ``(n_frames, 3, 3)`` forward and backward
         (:func:`~retarget.mapping.filter.zero_phase`; kept in ``unfiltered``), unless the cutoff is at or above
-        the clip's Nyquist frequency ``0.5 / frame_time`` (then nothing is filtered: ``cutoff_hz`` 0).
+        the clip's Nyquist frequency ``0.5 / frame_time`` (then nothing is filtered: ``cutoff_hz`` 0).  ``"auto"``:
+        the cutoff :func:`~retarget.mapping.cutoff.auto_cutoff` chooses from ``raw`` (0: none).
         """
         raw = np.asarray(raw, dtype=np.float64)
         if raw.ndim != 2 or raw.shape[1] != 3 or raw.shape[0] < 1:
@@ -134,6 +141,10 @@ class Targets:
         if not (np.isfinite(frame_time) and frame_time > 0):
             raise ValueError(f"Expected a frame time > 0 s, got {frame_time}")
         unfiltered = None
+        auto = cutoff_hz == AUTO
+        if cutoff_hz == AUTO:
+            cutoff_hz = auto_cutoff(raw, 1.0 / frame_time)
+            log.info("target filter: auto, %s", f"{cutoff_hz:.1f} Hz" if cutoff_hz else "none (a clean clip)")
         if 0 < cutoff_hz < 0.5 / frame_time and len(raw) > 1:
             unfiltered, raw = raw, zero_phase(raw, 1.0 / frame_time, cutoff_hz)
             if rotations is not None:  # element-wise, then the nearest rotations again (they turn slowly)
@@ -153,6 +164,7 @@ class Targets:
             pushed=pushed,
             unfiltered=unfiltered,
             cutoff_hz=float(cutoff_hz),
+            cutoff_auto=auto,
         )
 
     @property
@@ -296,12 +308,12 @@ def retarget_targets(
     )
 
 
-def filter_targets(targets: Targets, cutoff_hz: float = DEFAULT_CUTOFF_HZ) -> Targets:
+def filter_targets(targets: Targets, cutoff_hz: Cutoff = DEFAULT_CUTOFF) -> Targets:
     """Unfiltered ``targets`` (``cutoff_hz`` 0) with their mapped points (``raw``) and rotations low-passed by
-    :func:`zero_phase` at the clip's frame rate, then clamped into the workspace again, as
-    :func:`~retarget.mapping.retarget_targets` does with ``MappingConfig.cutoff_hz``; ``cutoff_hz <= 0``:
-    ``targets`` itself.  ``ValueError`` for targets that were filtered already."""
-    if cutoff_hz <= 0:
+    :func:`zero_phase` at the clip's frame rate (``"auto"``: at the cutoff chosen from them), then clamped into the
+    workspace again, as :func:`~retarget.mapping.retarget_targets` does with ``MappingConfig.cutoff_hz``;
+    ``cutoff_hz <= 0``: ``targets`` itself.  ``ValueError`` for targets that were filtered already."""
+    if cutoff_hz != AUTO and cutoff_hz <= 0:
         return targets
     if targets.unfiltered is not None:
         raise ValueError(f"Expected unfiltered targets, got targets filtered at {targets.cutoff_hz:g} Hz")

@@ -1,6 +1,6 @@
-"""The target filters' options: ``--filter-cutoff``/``--no-filter`` on the clip commands (zero-phase, on by
-default), ``--filter-min-cutoff``/``--filter-beta``/``--no-filter`` on teleop's streams (One-Euro), their errors
-and help; the run's measure of following in ``--json`` and the telemetry."""
+"""The target filters' options: ``--filter-cutoff``/``--no-filter`` on the clip commands (zero-phase, by default
+at the cutoff chosen from the clip), ``--filter-min-cutoff``/``--filter-beta``/``--no-filter`` on teleop's streams
+(One-Euro), their errors and help; the run's measure of following in ``--json`` and the telemetry."""
 
 from __future__ import annotations
 
@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 
 from retarget.cli import main
-from retarget.mapping.filter import DEFAULT_CUTOFF_HZ
 from tests.helpers import REPO
 
 ONLY_STREAMS = "the stream filter goes with --stdin or --udp (a single target or keys: nothing to smooth)"
@@ -31,27 +30,33 @@ def export(capsys, *args: str) -> np.ndarray:
     return np.loadtxt(io.StringIO(out), delimiter=",", skiprows=1)
 
 
-def test_export_filters_by_default_and_the_flags_change_it(capsys, tmp_path):
-    default = export(capsys)
-    assert np.array_equal(export(capsys, "--filter-cutoff", f"{DEFAULT_CUTOFF_HZ:g}"), default)  # the default
+def test_export_filters_at_the_auto_cutoff_by_default_and_the_flags_change_it(capsys, tmp_path, caplog):
+    with caplog.at_level("INFO", logger="retarget.mapping.targets"):
+        default = export(capsys)
+    assert "target filter: auto, none (a clean clip)" in caplog.text  # the demo clip: a clean capture
+    assert np.array_equal(export(capsys, "--filter-cutoff", "auto"), default)  # the default
     unfiltered = export(capsys, "--no-filter")
-    assert np.array_equal(export(capsys, "--filter-cutoff", "0"), unfiltered)
-    smoother = export(capsys, "--filter-cutoff", "2")
-    assert not np.allclose(default, unfiltered) and not np.allclose(default, smoother)
+    assert np.array_equal(export(capsys, "--filter-cutoff", "0"), unfiltered) and np.array_equal(default, unfiltered)
+    six, smoother = export(capsys, "--filter-cutoff", "6"), export(capsys, "--filter-cutoff", "2")
+    assert not np.allclose(six, unfiltered) and not np.allclose(six, smoother)
     # an arm file's cutoff_hz is the default the flag overrides
     arm = tmp_path / "arm.toml"
     text = (REPO / "config" / "arms" / "wx250s.toml").read_text(encoding="utf-8")
     assert "\n[mapping]" not in text  # the bundled file keeps the defaults: add the table
-    arm.write_text(text + "\n[mapping]\ncutoff_hz = 0\n", encoding="utf-8")
-    assert np.array_equal(export(capsys, "--arm", str(arm)), unfiltered)
-    assert np.array_equal(export(capsys, "--arm", str(arm), "--filter-cutoff", f"{DEFAULT_CUTOFF_HZ:g}"), default)
+    arm.write_text(text + "\n[mapping]\ncutoff_hz = 6\n", encoding="utf-8")
+    assert np.array_equal(export(capsys, "--arm", str(arm)), six)
+    assert np.array_equal(export(capsys, "--arm", str(arm), "--filter-cutoff", "AUTO"), default)
+    arm.write_text(text + '\n[mapping]\ncutoff_hz = "auto"\n', encoding="utf-8")
+    assert np.array_equal(export(capsys, "--arm", str(arm)), default)
 
 
-@pytest.mark.parametrize("value", ["0.01", "101", "-1", "x"])
+@pytest.mark.parametrize("value", ["0.01", "101", "-1", "x", "automatic"])
 def test_a_bad_cutoff_names_the_flag(capsys, value):
     code, out, err = run(capsys, "export", *WINDOW, f"--filter-cutoff={value}")
     assert code == 2 and out == ""
-    assert err.strip().startswith("retarget: --filter-cutoff: Expected a cutoff from 0.1 to 100 Hz, or 0 (no filter)")
+    assert err.strip().startswith(
+        "retarget: --filter-cutoff: Expected 'auto', a cutoff from 0.1 to 100 Hz, or 0 (no filter)"
+    )
     assert "Traceback" not in err
 
 

@@ -1,5 +1,5 @@
-"""Target filters: the zero-phase low-pass of a whole clip (on by default, before the workspace clamp) and the
-One-Euro filter of a live stream."""
+"""Target filters: the zero-phase low-pass of a whole clip (before the workspace clamp; by default at the cutoff
+chosen from the clip, retarget.mapping.cutoff) and the One-Euro filter of a live stream."""
 
 from __future__ import annotations
 
@@ -10,7 +10,8 @@ import retarget
 from retarget.errors import ConfigError
 from retarget.mapping import Targets, Workspace, retarget_targets
 from retarget.mapping.config import MappingConfig
-from retarget.mapping.filter import DEFAULT_CUTOFF_HZ, OneEuro, _butterworth2, _one_pass, zero_phase
+from retarget.mapping.cutoff import auto_cutoff
+from retarget.mapping.filter import AUTO, OneEuro, _butterworth2, _one_pass, zero_phase
 from retarget.mapping.targets import filter_targets
 from tests.helpers import SHARED_BVH
 
@@ -27,16 +28,20 @@ def _unfiltered(arm: retarget.Arm, **overrides: object) -> MappingConfig:
 
 
 @needs_clip
-def test_noisy_clip_filtered_has_100x_less_jerk_and_no_lag() -> None:
+def test_noisy_clip_filtered_at_its_auto_cutoff_has_50x_less_jerk_no_lag_and_half_the_error_of_6_hz() -> None:
     arm = retarget.load_arm("wx250s")
     clean = retarget_targets(retarget.load_bvh(CLIP), arm, _unfiltered(arm)).raw
     rate = 120.0
     noisy = clean + np.random.default_rng(7).normal(0.0, 0.002, clean.shape)  # 2 mm of sensor noise
-    smooth = zero_phase(noisy, rate)
-    assert _rms_jerk(smooth, rate) * 100 < _rms_jerk(noisy, rate)  # measured at the default cutoff
-    # the cut of the dance's own fast moves: 1.9 mm RMS at the default 6 Hz (under the 2 mm of noise; 4 Hz: 4.1 mm)
-    assert np.sqrt(np.mean((smooth - clean) ** 2)) < 0.002
-    assert np.sqrt(np.mean((zero_phase(noisy, rate, 4.0) - clean) ** 2)) < 0.005
+    assert auto_cutoff(clean, rate) == 0.0  # the clip alone: a clean capture, left as it is
+    cutoff = auto_cutoff(noisy, rate)
+    assert 10.0 < cutoff < 13.0  # measured 11.5 Hz
+    smooth = zero_phase(noisy, rate, cutoff)
+    assert _rms_jerk(smooth, rate) * 50 < _rms_jerk(noisy, rate)  # measured 56x (6 Hz: 134x, 4 Hz: 220x)
+    # nearer the clean clip than the noise was, and nearer than a fixed 6 Hz or 4 Hz, which cut the dance's own fast
+    # moves: measured 0.98 mm RMS against 1.89 and 4.06 (and 2.0 unfiltered)
+    error = {c: float(np.sqrt(np.mean((zero_phase(noisy, rate, c) - clean) ** 2))) for c in (cutoff, 6.0, 4.0)}
+    assert error[cutoff] < 0.0011 and error[cutoff] * 1.7 < error[6.0] and error[6.0] * 2 < error[4.0]
     # zero phase: the lag that best aligns the filtered clip with the clean one is 0 frames
     lags = range(-5, 6)
     errors = [np.mean((np.roll(smooth, k, axis=0) - clean)[10:-10] ** 2) for k in lags]
@@ -64,8 +69,8 @@ def test_the_vectorised_pass_equals_the_recursion(n: int, rate: float, cutoff: f
 def test_the_cutoff_is_minus_6_db() -> None:
     """Forward and backward: the 2nd-order Butterworth's -3 dB twice, a gain of 0.5 at the cutoff."""
     t = np.arange(2400) / 120.0
-    for f, gain in ((DEFAULT_CUTOFF_HZ, 0.5), (1.0, 1.0), (24.0, 0.0)):
-        y = zero_phase(np.sin(2 * np.pi * f * t), 120.0)
+    for f, gain in ((6.0, 0.5), (1.0, 1.0), (24.0, 0.0)):
+        y = zero_phase(np.sin(2 * np.pi * f * t), 120.0, 6.0)
         assert np.max(np.abs(y[600:-600])) == pytest.approx(gain, abs=0.01)
 
 
@@ -114,28 +119,34 @@ def test_no_cutoff_or_one_above_nyquist_filters_nothing(arm) -> None:
 
 
 @needs_clip
-def test_retarget_targets_filters_by_default_and_filter_targets_matches(arm) -> None:
+def test_retarget_targets_filters_at_the_auto_cutoff_by_default_and_filter_targets_matches(arm) -> None:
     motion = retarget.load_bvh(CLIP)
-    default = retarget_targets(motion, arm)  # the arm file has no cutoff_hz: the default
+    default = retarget_targets(motion, arm)  # the arm file has no cutoff_hz: the default, auto
     clean = retarget_targets(motion, arm, _unfiltered(arm))
-    assert MappingConfig().cutoff_hz == default.cutoff_hz == DEFAULT_CUTOFF_HZ and clean.unfiltered is None
-    np.testing.assert_array_equal(default.unfiltered, clean.raw)
-    np.testing.assert_allclose(default.raw, zero_phase(clean.raw, 1.0 / clean.frame_time))
-    again = filter_targets(clean)
-    np.testing.assert_array_equal(again.raw, default.raw)
-    np.testing.assert_array_equal(again.positions, default.positions)
+    assert MappingConfig().cutoff_hz == AUTO and default.cutoff_auto and not clean.cutoff_auto
+    # a clean optical capture: auto leaves it unfiltered
+    assert default.cutoff_hz == 0.0 and default.unfiltered is None and clean.unfiltered is None
+    np.testing.assert_array_equal(default.raw, clean.raw)
+    # with 2 mm of noise, auto filters it (at the cutoff auto_cutoff chooses), as filter_targets does
+    noisy = Targets.from_raw(clean.raw + np.random.default_rng(7).normal(0.0, 0.002, clean.raw.shape),
+                             frame_time=clean.frame_time, workspace=clean.workspace, cutoff_hz=AUTO)  # fmt: skip
+    assert noisy.cutoff_auto and noisy.cutoff_hz == auto_cutoff(noisy.unfiltered, 1.0 / clean.frame_time) > 10.0
+    again = filter_targets(Targets.from_raw(noisy.unfiltered, frame_time=clean.frame_time, workspace=clean.workspace))
+    np.testing.assert_array_equal(again.raw, noisy.raw)
+    np.testing.assert_array_equal(again.positions, noisy.positions)
+    six = retarget_targets(motion, arm, _unfiltered(arm, cutoff_hz=6.0))
+    np.testing.assert_array_equal(filter_targets(clean, 6.0).raw, six.raw)
+    np.testing.assert_allclose(six.raw, zero_phase(clean.raw, 1.0 / clean.frame_time, 6.0))
     assert filter_targets(clean, 0.0) is clean
-    with pytest.raises(
-        ValueError, match=f"Expected unfiltered targets, got targets filtered at {DEFAULT_CUTOFF_HZ:g} Hz"
-    ):
-        filter_targets(default)
+    with pytest.raises(ValueError, match="Expected unfiltered targets, got targets filtered at 6 Hz"):
+        filter_targets(six)
 
 
 @needs_clip
 def test_orientation_targets_are_filtered_and_stay_rotations(arm) -> None:
     motion = retarget.load_bvh(CLIP)
     raw = retarget_targets(motion, arm, _unfiltered(arm, orientation_weight=0.5)).rotations
-    smooth = retarget_targets(motion, arm, MappingConfig.from_table(arm.mapping, overrides={"orientation_weight": 0.5}))
+    smooth = retarget_targets(motion, arm, _unfiltered(arm, orientation_weight=0.5, cutoff_hz=6.0))
     R = smooth.rotations
     assert raw is not None and R is not None
     np.testing.assert_allclose(R @ R.transpose(0, 2, 1), np.broadcast_to(np.eye(3), R.shape), atol=1e-12)
@@ -147,13 +158,19 @@ def test_orientation_targets_are_filtered_and_stay_rotations(arm) -> None:
 
 
 @pytest.mark.parametrize(
-    ("value", "ok"), [(0, True), (0.1, True), (6, True), (100, True), (0.05, False), (101, False), (-1, False)]
-)
-def test_the_cutoff_is_checked(value: float, ok: bool) -> None:
-    if ok:
-        assert MappingConfig.from_table({"cutoff_hz": value}).cutoff_hz == value
+    ("value", "ok"),
+    [(0, 0.0), (0.1, 0.1), (6, 6.0), (100, 100.0), ("auto", AUTO), (" Auto ", AUTO), ("12", 12.0), (0.05, None),
+     (101, None), (-1, None), ("automatic", None), (True, None)],
+    ids=["off", "lowest", "6Hz", "highest", "auto", "Auto", "text-12", "too-low", "too-high", "negative", "word",
+         "bool"],
+)  # fmt: skip
+def test_the_cutoff_is_checked(value: object, ok: object) -> None:
+    if ok is not None:
+        assert MappingConfig.from_table({"cutoff_hz": value}).cutoff_hz == ok
         return
-    with pytest.raises(ConfigError, match=r"mapping\.cutoff_hz: Expected a cutoff from 0\.1 to 100 Hz, or 0"):
+    with pytest.raises(
+        ConfigError, match=r"^arm\.toml: mapping\.cutoff_hz: Expected 'auto', a cutoff from 0\.1 to 100 Hz, or 0"
+    ):
         MappingConfig.from_table({"cutoff_hz": value}, path="arm.toml")
 
 
