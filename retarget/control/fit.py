@@ -93,7 +93,7 @@ _TASK_RHO = (0.01, 0.001, 1.0)
 _TASK_RELAX = 1.8
 #: the task fit's speed and acceleration weights start at this share of their value and double every so many
 #: sweeps until they reach it (continuation: the fit first follows the task, then the limits take hold).  wx250s on
-#: motion_basket right after 40 sweeps: p95 1.15 mm without, 1.04 with (the optimum, 300 sweeps on: 0.99)
+#: motion_basket right after 40 sweeps: p95 1.15 mm without, 1.05 with (the optimum, 300 sweeps on: 0.99)
 _TASK_RAMP = (0.1, 8)
 
 

@@ -165,15 +165,15 @@ class StepLimiter:
             u = 0.0 if last is None else (g - last[i]) / elapsed
             u = m if u > m else -m if u < -m else u
             d = g - x0 - u
-            if d > 0.0:  # u + stop_speed(d, a), inlined (the same expressions, so the same floats)
+            if -0.5 * a < d < 0.5 * a:  # stop_speed's n is 0 (|d| < a): it gives d itself, the same float
+                w = u + d
+            elif d > 0.0:  # u + stop_speed(d, a), inlined (the same expressions, so the same floats)
                 n = floor((sqrt(1.0 + 8.0 * d / a) - 1.0) * 0.5)
                 w = u + (d + a * n * (n + 1) * 0.5) / (n + 1)
-            elif d < 0.0:  # u - stop_speed(-d, a)
+            else:  # u - stop_speed(-d, a)
                 d = -d
                 n = floor((sqrt(1.0 + 8.0 * d / a) - 1.0) * 0.5)
                 w = u - (d + a * n * (n + 1) * 0.5) / (n + 1)
-            else:
-                w = u
             low, high = v - a, v + a
             if low < -m:
                 low = -m

@@ -30,7 +30,7 @@ all joints at once, on the goal path ``g`` ``(n, n_joints)``:
    constraints nearly but not exactly met), so the loop's own limiter, fed the plan tick by tick, reproduces it.
 
 The cost: on ``motion_dance.bvh`` (1 559 ticks, three or four joints to plan) the joints' fit takes 6-7 ms in all
-(20 sweeps of a few numpy passes and one FFT pair each), the task's 20-28 ms (60 sweeps, a ``k x k`` product per
+(20 sweeps of a few numpy passes and one FFT pair each), the task's 15-18 ms (50 sweeps, a ``k x k`` product per
 tick in each, and the Jacobians), then the last pass (about 0.3 us per joint and tick where the profile has work to
 do; the slots where the joint stays on its goal are copied, :func:`_follow`).  A limit of the method: a clip that
 starts in a motion which keeps a joint at its acceleration limit from the first tick on (the plan itself starts at
@@ -64,8 +64,8 @@ __all__ = ["PathPlan", "plan_path", "solve_and_plan"]
 Array = npt.NDArray[np.float64]
 
 ITERATIONS = 20  #: ADMM sweeps of the joints' fit (15-40 give the same tracking on the shared clips within ~0.5 mm p95)
-TASK_ITERATIONS = 60  #: ADMM sweeps of the task's fit (slower to settle: wx250s on motion_basket right p95 1.15 mm
-#: after 20, 1.04 after 40, 1.03 after 60, 0.99 after 300)
+TASK_ITERATIONS = 50  #: ADMM sweeps of the task's fit: slower to settle (wx250s on motion_basket right p95 1.14 mm
+#: after 20, 1.05 after 40, 1.04 after 50, 1.03 after 60, 0.99 after 300), each a third dearer (dance: 15-18 ms in all)
 SPEED_COST = 0.2  #: the soft cost on speeds above ``easy_speed`` of the limit, per (share of the limit)^2 and slot
 EASY_SPEED = 0.85  #: the fraction of each joint's velocity limit above which speed costs
 #: the look-ahead IK pass's tolerance, a share of the solver's own (``CCDSolver.tolerance``, 1 mm: the causal
@@ -197,17 +197,17 @@ def _follow(goal: list[float], q: float, limits: tuple[float, float, float, floa
         u = vmax if step > vmax else -vmax if step < -vmax else step
         d = g - q - u
         reach = True  # (the step below reaches g: u + d)
-        if d > 0.0:  # u + stop_speed(d, a)
+        if -0.5 * a < d < 0.5 * a:  # stop_speed's n is 0 (|d| < a): it gives d itself, the same float
+            w = u + d
+        elif d > 0.0:  # u + stop_speed(d, a)
             n = floor((sqrt(1.0 + 8.0 * d / a) - 1.0) * 0.5)
             w = u + (d + a * n * (n + 1) * 0.5) / (n + 1)
             reach = n == 0
-        elif d < 0.0:  # u - stop_speed(-d, a)
+        else:  # u - stop_speed(-d, a)
             d = -d
             n = floor((sqrt(1.0 + 8.0 * d / a) - 1.0) * 0.5)
             w = u - (d + a * n * (n + 1) * 0.5) / (n + 1)
             reach = n == 0
-        else:
-            w = u
         free = w
         low, high = v - a, v + a
         if low < -vmax:

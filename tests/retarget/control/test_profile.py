@@ -108,16 +108,21 @@ def test_profile_step_from_rest_accelerates_by_a() -> None:
 
 
 @pytest.mark.parametrize("seed", range(3))
-def test_the_limiters_inlined_step_is_profile_step(seed: int) -> None:
-    """StepLimiter inlines profile_step (skipping the joint limits' bound a braking run away from them): the same
-    step, tick for tick, near the limits and far from them."""
+@pytest.mark.parametrize("kind", ["jumps", "smooth"])
+def test_the_limiters_inlined_step_is_profile_step(seed: int, kind: str) -> None:
+    """StepLimiter inlines profile_step (skipping the joint limits' bound a braking run away from them, and the
+    square root where the goal is within half a slot's acceleration: stop_speed is then the distance itself): the
+    same floats, tick for tick, near the limits and far from them, after jumps and along a goal it can follow."""
     rng = np.random.default_rng(seed)
     lo, hi, vmax, a = -1.0, 1.0, 0.08, 0.01
     limiter = StepLimiter(np.array([lo]), np.array([hi]), np.array([vmax]), np.array([0.0]), max_accel=np.array([a]))
     q, v, last = 0.0, 0.0, None
-    for g in rng.uniform(-1.5, 1.5, 300).repeat(3):
+    t = np.arange(900)
+    goals = (rng.uniform(-1.5, 1.5, 300).repeat(3) if kind == "jumps"
+             else 0.9 * np.sin(t / rng.uniform(20, 60)) + rng.normal(0.0, 0.002, 900))  # fmt: skip
+    for g in goals:
         u = 0.0 if last is None else float(np.clip(g - last, -vmax, vmax))
         w = profile_step(q, v, g, u, vmax, a, lo, hi)
         limiter.step([g], elapsed=1)
-        assert limiter.q[0] == pytest.approx(min(max(q + w, lo), hi), abs=1e-12)
+        assert limiter.q[0] == min(max(q + w, lo), hi)
         q, v, last = limiter.q[0], limiter.velocity[0], g
