@@ -19,14 +19,14 @@ Per clip, arm and side, today | now:
   the limiter's own flag would not); target: 5x fewer than TODAY;
 - ``redund``: the redundant joints' total travel, rad (forearm_roll + wrist_rotate on a 6-DOF arm; target <= 1);
 - ``p95``: the tracking error p95, mm: the unfiltered mapped target to the commanded tool point (target on
-  motion_dance right <= 15, and nowhere worse than TODAY).  Missed on wx250s motion_basket right (2.8 against 1.0)
-  and motion_walk right (2.0 against 1.0), rows TODAY followed to its IK tolerance at 303 and 243 rad/s^2.
-  motion_basket's mapped hand path is broadband: low-passed at 25 Hz it moves p95 0.8 mm (15 Hz: 1.2, 6 Hz: 2.1),
-  and followed unfiltered its joints need more than the 43.6 rad/s^2 limit on 10-20 % of the ticks, so no path
-  within the limits stays within 1 mm of it on 95 % of the ticks with 5x fewer ticks at full speed: unfiltered,
-  without the speed cost and with 1500 sweeps the plan reaches p95 0.99 mm but 18 ticks at full speed (TODAY 30,
-  target 6); with the speed cost, 2.0-2.6.  motion_walk right is the 6 Hz filter's (0.9 unfiltered), but 10-13 Hz
-  each miss another row (walk right 1.1 at 10; unity_walk_random left 8.0 at 12 against 7.8).
+  motion_dance right <= 15, and nowhere worse than TODAY).  The two rows TODAY followed to its IK tolerance
+  (wx250s motion_basket right and motion_walk right, at 303 and 243 rad/s^2) took two changes to meet within the
+  43.6 rad/s^2 limit: the target filter's cutoff chosen from the clip (``auto``: the shared clips are clean, so
+  none, or 40 Hz and up; a fixed 6 Hz took p95 2.1 mm off the basket hand's real path), and the look-ahead plan
+  fitting the tool point instead of each joint's IK path (``retarget.control.fit.fit_task``: where one joint must
+  lag, the others make up for it).  motion_basket right is the hardest: the plan's optimum is 0.99 mm (300 ADMM
+  sweeps), 1.04 at the default 50, 1.14 at 20; its hand path is broadband (low-passed at 25 Hz it still moves p95
+  0.8 mm).  Before, with the joints' fit and the 6 Hz filter: 2.8 and 2.0 mm;
 - ``RTF``: the offline real-time factor of the run (clip seconds per wall second, the best of ``--runs`` runs, each
   a fresh loop as export builds it; target >= 100), the look-ahead plan's IK and passes included (one run per row
   read 72-77x on rows that read 107-132x a minute earlier on this shared 2-core VM);

@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +26,7 @@ from retarget.control.clock import Clock, VirtualClock
 from retarget.control.loop import LoopConfig, TickRecord
 from retarget.errors import ConfigError
 from retarget.mapping.config import MappingConfig
+from retarget.mapping.filter import AUTO, CAUSAL_CUTOFF_HZ
 from retarget.rig import Rig, RigReplay, RigSummary, RigTargets, load_rig, rig_targets
 
 __all__ = ["add_rig_option", "arm_lines", "export_rig", "load_rig_inputs", "refuse_arm_options", "rig_replay"]
@@ -67,6 +68,13 @@ def refuse_arm_options(args: argparse.Namespace) -> None:
                               key=option, value=value)  # fmt: skip
 
 
+def played_mapping(config: MappingConfig, args: argparse.Namespace) -> MappingConfig:
+    """``config`` as the run plays it: a cutoff of ``"auto"`` is :data:`~retarget.mapping.filter.CAUSAL_CUTOFF_HZ`
+    when the clip plays causally (``--loop``, ``--no-look-ahead``), where no plan starts early for a fast move."""
+    causal = getattr(args, "loop", False) or getattr(args, "no_look_ahead", False)
+    return replace(config, cutoff_hz=CAUSAL_CUTOFF_HZ) if causal and config.cutoff_hz == AUTO else config
+
+
 def load_rig_inputs(args: argparse.Namespace, overrides: Mapping[str, Any]) -> RigInputs:
     """The clip, the rig of ``--rig``, each arm's collision model (the collision flags) and the targets mapped with
     the mapping flags' ``overrides`` (``replay.mapping_overrides``)."""
@@ -74,7 +82,8 @@ def load_rig_inputs(args: argparse.Namespace, overrides: Mapping[str, Any]) -> R
     rig = load_rig(args.rig)
     clip = Path(DEMO_CLIP) if args.clip is None else Path(args.clip)
     first = rig.arms[0].arm
-    config = MappingConfig.from_table(first.mapping, path=first.source, overrides=dict(overrides))
+    table = MappingConfig.from_table(first.mapping, path=first.source, overrides=dict(overrides))
+    config = played_mapping(table, args)
     motion = retarget.load_bvh(clip)
     models = {a.name: collision_model(args, a.arm) for a in rig.arms}
     targets = rig_targets(motion, rig, config, collision=models)

@@ -40,7 +40,7 @@ from retarget.cli._bus import (
 from retarget.cli._gripper import add_replay_option as add_gripper_option
 from retarget.cli._gripper import clip_track, gripper_on_tick
 from retarget.cli._rig_replay import check_rig_replay, replay_rig
-from retarget.cli._rig_run import add_rig_option, load_rig_inputs
+from retarget.cli._rig_run import add_rig_option, load_rig_inputs, played_mapping
 from retarget.cli._view import add_view_arguments, check_view_options, forward, live_view, serve_web
 from retarget.collision import CollisionModel
 from retarget.control import ControlLoop, LoopConfig, TickRecord
@@ -95,7 +95,7 @@ def add_clip_arguments(parser: argparse.ArgumentParser) -> None:
         "--no-look-ahead",
         action="store_true",
         help="solve each tick as it comes and follow it within the speed and acceleration limits (lags fast "
-        "motion: wx250s on motion_dance left, p95 82 mm from the target instead of 30); default: solve the whole clip "
+        "motion: wx250s on motion_dance left, p95 82 mm from the target instead of 23); default: solve the whole clip "
         "first and plan the joint path ahead, within the same limits (a few passes over the ticks before the "
         "first one; a --loop run is always causal)",
     )
@@ -129,7 +129,8 @@ def add_mapping_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="HZ|auto",
         help="low-pass the clip's mapped targets forward and backward before the workspace clamp: zero lag, "
         "-6 dB at HZ, 2nd-order Butterworth run twice (0.1-100); default auto, or the arm file's cutoff_hz: "
-        "chosen from the clip's own noise (none for a clean capture; -v logs the choice)",
+        "chosen from the clip's own noise (none for a clean capture; -v logs the choice), 6 Hz when played "
+        "causally (--loop, --no-look-ahead)",
     )
     g.add_argument("--no-filter", action="store_true", help="command the mapped targets unfiltered (--filter-cutoff 0)")
 
@@ -165,7 +166,8 @@ def load_inputs(args: argparse.Namespace) -> Inputs:
     else:
         clip = Path(args.clip)
     arm = load_arm_option(args)
-    config = MappingConfig.from_table(arm.mapping, path=arm.source, overrides=mapping_overrides(args))
+    table = MappingConfig.from_table(arm.mapping, path=arm.source, overrides=mapping_overrides(args))
+    config = played_mapping(table, args)
     motion = retarget.load_bvh(clip)
     collision = collision_model(args, arm)
     targets = retarget_targets(motion, arm, config, collision=collision)

@@ -10,7 +10,8 @@
   *before* the workspace clamp and the collision push-out, so every filtered target is still reachable.  By
   default (:data:`DEFAULT_CUTOFF`, ``"auto"``) the cutoff is chosen from the clip's own noise
   (:func:`~retarget.mapping.cutoff.auto_cutoff`: none for a clean capture, lower the noisier it is); a number
-  sets it; ``cutoff_hz = 0`` (``--no-filter``) turns it off.  A cutoff at or above the clip's Nyquist frequency
+  sets it; ``cutoff_hz = 0`` (``--no-filter``) turns it off.  A clip played causally (no look-ahead) reads
+  ``"auto"`` as :data:`CAUSAL_CUTOFF_HZ`.  A cutoff at or above the clip's Nyquist frequency
   (half its frame rate) filters nothing.
 * :class:`OneEuro`: a causal filter for targets that arrive live (Casiez, Roussel and Vogel, "1 Euro filter:
   a simple speed-based low-pass filter for noisy input in interactive systems", CHI 2012): a one-pole low-pass
@@ -35,7 +36,16 @@ import numpy.typing as npt
 
 from retarget.errors import require_positive
 
-__all__ = ["AUTO", "DEFAULT_BETA", "DEFAULT_CUTOFF", "DEFAULT_MIN_CUTOFF_HZ", "Cutoff", "OneEuro", "zero_phase"]
+__all__ = [
+    "AUTO",
+    "CAUSAL_CUTOFF_HZ",
+    "DEFAULT_BETA",
+    "DEFAULT_CUTOFF",
+    "DEFAULT_MIN_CUTOFF_HZ",
+    "Cutoff",
+    "OneEuro",
+    "zero_phase",
+]
 
 AUTO: Literal["auto"] = "auto"  #: ``cutoff_hz``: chosen from the clip (:func:`~retarget.mapping.cutoff.auto_cutoff`)
 Cutoff = float | Literal["auto"]  #: a zero-phase cutoff: Hz (0: none), or :data:`AUTO`
@@ -44,6 +54,11 @@ Cutoff = float | Literal["auto"]  #: a zero-phase cutoff: Hz (0: none), or :data
 #: clean capture's own fast moves: Winter's 6 Hz for human kinematics took p95 2.1 mm off the path of wx250s on
 #: motion_basket right (bench/bench_smooth.py), while its noise is 0.2 mm
 DEFAULT_CUTOFF: Cutoff = AUTO
+#: Hz, what ``"auto"`` means for a clip played causally (replay ``--loop``, ``--no-look-ahead``): Winter's cutoff for
+#: human kinematics.  The causal limiter cannot start early for a move, so a clean clip's own fast moves cost it more
+#: in lag than the filter takes off them: wx250s on motion_dance right, p95 37 mm at 6 Hz against 64 unfiltered,
+#: unity_walk_random left 3.0 against 7.2 (bench/bench_smooth.py --flags=--no-look-ahead)
+CAUSAL_CUTOFF_HZ = 6.0
 DEFAULT_MIN_CUTOFF_HZ = 1.0  #: Hz, the One-Euro cutoff of a still hand (Casiez et al.'s starting point)
 DEFAULT_BETA = 20.0  #: Hz per m/s, how fast the One-Euro cutoff rises with the hand's speed
 

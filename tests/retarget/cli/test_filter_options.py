@@ -50,6 +50,17 @@ def test_export_filters_at_the_auto_cutoff_by_default_and_the_flags_change_it(ca
     assert np.array_equal(export(capsys, "--arm", str(arm)), default)
 
 
+def test_a_causal_run_reads_auto_as_6_hz(capsys, tmp_path):
+    """Without look-ahead the limiter cannot start early for a fast move: 'auto' is the former fixed 6 Hz there
+    (retarget.mapping.filter.CAUSAL_CUTOFF_HZ); a number or 0 stays what it says."""
+    causal = export(capsys, "--no-look-ahead")
+    assert np.array_equal(export(capsys, "--no-look-ahead", "--filter-cutoff", "6"), causal)
+    assert np.array_equal(export(capsys, "--no-look-ahead", "--filter-cutoff", "auto"), causal)
+    assert not np.allclose(export(capsys, "--no-look-ahead", "--no-filter"), causal)
+    assert not np.allclose(export(capsys, "--no-look-ahead", "--filter-cutoff", "3"), causal)
+    assert not np.allclose(export(capsys), causal)  # with look-ahead, auto leaves this clean clip unfiltered
+
+
 @pytest.mark.parametrize("value", ["0.01", "101", "-1", "x", "automatic"])
 def test_a_bad_cutoff_names_the_flag(capsys, value):
     code, out, err = run(capsys, "export", *WINDOW, f"--filter-cutoff={value}")
