@@ -15,7 +15,7 @@ thin wrappers over it.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Protocol
 
 import numpy as np
@@ -162,19 +162,7 @@ class Chain:
         >>> bool(np.allclose(arm.chain.tool_points(Q), arm.chain.fk_batch(Q)[:, :3, 3], atol=1e-15))
         True
         """
-        Q = self._check(Q, "Q")
-        if Q.ndim != 2:
-            raise ValueError(f"Expected Q of shape (n, {self.n}), got {Q.shape}")
-        R = np.zeros((3, 3, Q.shape[0]))
-        R[0, 0] = R[1, 1] = R[2, 2] = 1.0
-        p = np.zeros((3, Q.shape[0]))
-        for i in range(self.n):
-            origin = self.origins[i]
-            p += np.einsum("rkn,k->rn", R, origin[:3, 3])
-            R = np.einsum("rkn,kc->rcn", R, origin[:3, :3])
-            R = np.einsum("rkn,kcn->rcn", R, _axis_angle_entries(self.axes[i], Q[:, i]))
-        p += np.einsum("rkn,k->rn", R, self.tool[:3, 3])
-        out: np.ndarray = p.T
+        out: np.ndarray = self._walk(Q).T
         return out
 
     def tool_jacobians(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -192,22 +180,33 @@ class Chain:
         >>> J.shape, bool(np.allclose(moved, J[:, :, 1], atol=1e-5))
         ((2, 3, 6), True)
         """
+        axes, origins = np.empty((self.n, 3, len(Q))), np.empty((self.n, 3, len(Q)))
+
+        def joint(i: int, R: np.ndarray, p: np.ndarray) -> None:  # the joint's axis and origin, world
+            axes[i], origins[i] = np.einsum("rkn,k->rn", R, self.axes[i]), p
+
+        p = self._walk(Q, joint)
+        jacobians = np.cross(axes, p[None] - origins, axis=1)  # (n_joints, 3, n)
+        return np.ascontiguousarray(p.T), np.ascontiguousarray(jacobians.transpose(2, 1, 0))
+
+    def _walk(self, Q: np.ndarray, joint: Callable[[int, np.ndarray, np.ndarray], None] | None = None) -> np.ndarray:
+        """The tool points ``(3, n)`` of ``Q`` ``(n, n_joints)``, entry-major (rotations ``(3, 3, n)``, each product
+        over the whole batch at once); ``joint(i, R, p)`` sees each joint's frame at its origin, before it turns."""
         Q = self._check(Q, "Q")
         if Q.ndim != 2:
             raise ValueError(f"Expected Q of shape (n, {self.n}), got {Q.shape}")
         R = np.zeros((3, 3, Q.shape[0]))
         R[0, 0] = R[1, 1] = R[2, 2] = 1.0
         p = np.zeros((3, Q.shape[0]))
-        axes, origins = np.empty((self.n, 3, Q.shape[0])), np.empty((self.n, 3, Q.shape[0]))
         for i in range(self.n):
             origin = self.origins[i]
             p += np.einsum("rkn,k->rn", R, origin[:3, 3])
             R = np.einsum("rkn,kc->rcn", R, origin[:3, :3])
-            axes[i], origins[i] = np.einsum("rkn,k->rn", R, self.axes[i]), p
+            if joint is not None:
+                joint(i, R, p)
             R = np.einsum("rkn,kcn->rcn", R, _axis_angle_entries(self.axes[i], Q[:, i]))
         p += np.einsum("rkn,k->rn", R, self.tool[:3, 3])
-        jacobians = np.cross(axes, p[None] - origins, axis=1)  # (n_joints, 3, n)
-        return np.ascontiguousarray(p.T), np.ascontiguousarray(jacobians.transpose(2, 1, 0))
+        return p
 
     def frames_batch(self, Q: np.ndarray) -> np.ndarray:
         """Every link frame ``(n, n_joints + 1, 4, 4)`` for joint angles ``Q`` ``(n, n_joints)`` radians: the base
