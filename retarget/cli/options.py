@@ -23,6 +23,7 @@ OPTIONS: dict[str, str] = {
     "max_ticks": "--max-ticks",
     "velocity_scale": "--velocity-scale",
     "lead_in_speed": "--lead-in",
+    "jerk_cost": "--jerk-cost",
     # retarget.control.ControlLoop: play a clip's plan made ahead (off: causal, IK in each tick)
     "look_ahead": "--no-look-ahead",
     # retarget.cli._gripper: what drives the gripper (replay), its starting closure (teleop)

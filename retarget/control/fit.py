@@ -23,9 +23,21 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["ACCEL_SHARE", "Task", "check_task", "fit_joints", "fit_task", "task_of"]
+__all__ = ["ACCEL_SHARE", "Costs", "Task", "check_task", "fit_joints", "fit_task", "task_of"]
 
 Array = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Costs:
+    """The fits' soft costs (:func:`~retarget.control.plan.plan_path`'s): on speeds above ``easy_speed`` of the
+    limit (``speed``, per (share of the limit)^2), and on the change of acceleration per slot (``jerk``, per (share
+    of the acceleration limit)^2: a full reversal of the acceleration from one slot to the next costs ``2 jerk``)."""
+
+    speed: float
+    easy_speed: float
+    jerk: float
+
 
 #: ADMM's penalty weights of the speed and the acceleration constraints, each per (share of its limit)^2: the
 #: quickest to settle on the shared clips at 100 Hz (a step's end within 0.5 % of the goal after 20 sweeps).  Being
@@ -38,8 +50,7 @@ ACCEL_SHARE = 0.97
 _PAD = 50  #: slots of padding at each end (at q_start before, at the last goal after)
 
 
-def fit_joints(goal: Array, q0: Array, vmax: Array, amax: Array, iterations: int, speed_cost: float,
-                   easy_speed: float) -> Array:  # fmt: skip
+def fit_joints(goal: Array, q0: Array, vmax: Array, amax: Array, iterations: int, costs: Costs) -> Array:
     """The paths ``(k, n)`` rad nearest ``goal`` ``(k, n)`` rad by the module docstring's cost, approximately
     (``iterations`` ADMM sweeps, scaled form), each joint from ``q0`` ``(k,)`` rad with its own ``vmax`` and
     ``amax`` ``(k,)`` per slot.  Not yet exactly within the limits: the profile's last pass makes it so."""
@@ -50,10 +61,11 @@ def fit_joints(goal: Array, q0: Array, vmax: Array, amax: Array, iterations: int
     x = np.concatenate([x, x[:, ::-1]], axis=1)  # mirrored: a circular path whose differences are circular too
     lam = 2.0 - 2.0 * np.cos(2.0 * np.pi * np.arange(half + 1) / size)  # |1 - e^-iw|^2, the difference's gain
     rho1, rho2 = (_RHO_SPEED / vmax**2)[:, None], (_RHO_ACCEL / amax**2)[:, None]  # per rad^2 (per slot)
-    inverse = 1.0 / (1.0 + rho1 * lam + rho2 * lam * lam)  # (I + rho1 D'D + rho2 D'D'DD)^-1, diagonal
+    jerk = (costs.jerk / amax**2)[:, None]  # the jerk cost, a term of the update itself (D'D'D'DDD: lam^3)
+    inverse = 1.0 / (1.0 + rho1 * lam + (rho2 + jerk * lam) * lam * lam)  # (I + rho1 D'D + rho2 D'D'DD + ..)^-1
     fixed = np.fft.rfft(x) * inverse
-    easy, vcap, acap = (easy_speed * vmax)[:, None], vmax[:, None], (ACCEL_SHARE * amax)[:, None]
-    keep = _RHO_SPEED / (_RHO_SPEED + speed_cost)  # the share of a speed above ``easy`` that the soft cost keeps
+    easy, vcap, acap = (costs.easy_speed * vmax)[:, None], vmax[:, None], (ACCEL_SHARE * amax)[:, None]
+    keep = _RHO_SPEED / (_RHO_SPEED + costs.speed)  # the share of a speed above ``easy`` that the soft cost keeps
     q, d1 = x, _diff(x)
     z1, z2 = np.clip(d1, -vcap, vcap), np.clip(_diff(d1), -acap, acap)
     u1, u2 = np.zeros_like(x), np.zeros_like(x)
@@ -91,10 +103,6 @@ _TASK_REG = 0.01
 #: weight), and of the consensus with the task's own term; and its over-relaxation
 _TASK_RHO = (0.01, 0.001, 1.0)
 _TASK_RELAX = 1.8
-#: the task fit's speed and acceleration weights start at this share of their value and double every so many
-#: sweeps until they reach it (continuation: the fit first follows the task, then the limits take hold).  wx250s on
-#: motion_basket right after 40 sweeps: p95 1.15 mm without, 1.05 with (the optimum, 300 sweeps on: 0.99)
-_TASK_RAMP = (0.1, 8)
 
 
 def check_task(jacobians: npt.ArrayLike | None, residuals: npt.ArrayLike | None, n: int, m: int
@@ -131,11 +139,10 @@ def task_of(goals: Array, jacobians: Array, r: Array, hard: list[int]) -> Task |
     return Task(joints, A, np.einsum("tdi,td->it", J, r) / lever2)
 
 
-def fit_task(goal: Array, q0: Array, vmax: Array, amax: Array, iterations: int, speed_cost: float,
-                        easy_speed: float, task: Task) -> Array:  # fmt: skip
+def fit_task(goal: Array, q0: Array, vmax: Array, amax: Array, iterations: int, costs: Costs, task: Task) -> Array:
     """:func:`fit_joints` with the task's cost (:class:`Task`) in place of ``1/2 |q - g|^2``: ADMM with three
     blocks, the task term (a ``k x k`` solve per tick, inverted once), the speeds and the changes of speed, over
-    relaxed (:data:`_TASK_RELAX`, Boyd et al. sec. 3.4.3), the limits' weights ramped up (:data:`_TASK_RAMP`).  Each
+    relaxed (:data:`_TASK_RELAX`, Boyd et al. sec. 3.4.3).  Each
     joint's weights scale with its own task weight (the mean of its diagonal entry of ``A``): a diagonal
     preconditioner, so that a long lever and a short one settle alike.
 
@@ -148,11 +155,11 @@ def fit_task(goal: Array, q0: Array, vmax: Array, amax: Array, iterations: int, 
     x = _padded(goal, q0, h)
     weight = task.A[np.arange(k), np.arange(k)].mean(axis=1)[:, None]  # (k, 1)
     r_speed, r_accel, r_task = _TASK_RHO
-    share, every = _TASK_RAMP
     rho0 = r_task * weight
-    rho1, rho2 = share * weight * r_speed / vmax[:, None] ** 2, share * weight * r_accel / amax[:, None] ** 2
+    rho1, rho2 = weight * r_speed / vmax[:, None] ** 2, weight * r_accel / amax[:, None] ** 2
     twiddle, eigen = _cosine_basis(h)
-    inverse = 1.0 / (rho0[:, :, None] + rho1[:, :, None] * eigen + rho2[:, :, None] * eigen * eigen)  # (k, 2, m)
+    rho3 = (costs.jerk * weight / amax[:, None] ** 2)[:, :, None]  # the jerk cost: a term of the update itself
+    inverse = _inverse(rho0, rho1, rho2, rho3, eigen)
     inv = np.moveaxis(np.linalg.inv(np.moveaxis(task.A, -1, 0) + np.diag(rho0[:, 0])), 0, -1)  # (A + rho0)^-1
     after = h - _PAD - n  # the padding after the last goal keeps the last tick's task (its residual too)
     inv = np.concatenate([inv, np.repeat(inv[:, :, -1:], after, axis=2)], axis=2)
@@ -160,8 +167,8 @@ def fit_task(goal: Array, q0: Array, vmax: Array, amax: Array, iterations: int, 
     solve = inv * rho0[None, :, :]  # (k, k, n + after): (A + rho0)^-1 rho0, the task term's prox on v - g
     b = np.concatenate([task.b, np.repeat(task.b[:, -1:], after, axis=1)], axis=1)
     base = aims - (inv * b[None]).sum(axis=1)  # g - (A + rho0)^-1 b
-    easy, vcap, acap = easy_speed * vmax[:, None], vmax[:, None], ACCEL_SHARE * amax[:, None]
-    keep = share * r_speed / (share * r_speed + speed_cost)
+    easy, vcap, acap = costs.easy_speed * vmax[:, None], vmax[:, None], ACCEL_SHARE * amax[:, None]
+    keep = r_speed / (r_speed + costs.speed)
     pad_keep = rho0 / (weight + rho0)  # the padding before the first goal: 1/2 |q - q0|^2 at the joint's weight
     real = slice(_PAD, h)
     d1 = _steps(x)
@@ -169,13 +176,7 @@ def fit_task(goal: Array, q0: Array, vmax: Array, amax: Array, iterations: int, 
     u0, u1, u2 = np.zeros_like(z0), np.zeros_like(z1), np.zeros_like(z2)
     al, clip = _TASK_RELAX, np.clip
     q = x
-    for sweep in range(iterations):
-        if sweep and sweep % every == 0 and share < 1.0:  # the ramp's next step (the scaled duals scale back)
-            grow = min(2.0, 1.0 / share)
-            share *= grow
-            rho1, rho2, u1, u2 = rho1 * grow, rho2 * grow, u1 / grow, u2 / grow
-            inverse = 1.0 / (rho0[:, :, None] + rho1[:, :, None] * eigen + rho2[:, :, None] * eigen * eigen)
-            keep = share * r_speed / (share * r_speed + speed_cost)
+    for _ in range(iterations):
         w = rho2 * (z2 - u2)
         r = rho0 * (z0 - u0) + _steps_t(rho1 * (z1 - u1) - _steps(w))  # D'(rho1 (z1 - u1)) - L (rho2 (z2 - u2))
         q = _cosine_solve(r, inverse, twiddle)
@@ -193,6 +194,12 @@ def fit_task(goal: Array, q0: Array, vmax: Array, amax: Array, iterations: int, 
         z2 = clip(u2, -acap, acap)
         u2 -= z2
     return q[:, _PAD : _PAD + n]
+
+
+def _inverse(rho0: Array, rho1: Array, rho2: Array, rho3: Array, eigen: Array) -> Array:
+    """``1 / (rho0 + rho1 L + rho2 L^2 + rho3 L^3)`` ``(k, 2, m)`` at the path Laplacian's eigenvalues ``eigen``
+    ``(2, m)``, each weight ``(k, 1)`` (``rho3`` ``(k, 1, 1)``): the joints' own update in the cosine basis."""
+    return 1.0 / (rho0[:, :, None] + eigen * (rho1[:, :, None] + eigen * (rho2[:, :, None] + rho3 * eigen)))
 
 
 def _cosine_basis(h: int) -> tuple[npt.NDArray[np.complex128], Array]:

@@ -54,6 +54,7 @@ import numpy.typing as npt
 from retarget.control.bus import Bus, BusStatus
 from retarget.control.clock import Clock
 from retarget.control.limits import StepLimiter
+from retarget.control.plan import JERK_COST
 from retarget.control.readback import ReadBack, SentTick, read_back_for
 from retarget.control.safety import GoalCheck
 from retarget.control.schedule import Schedule
@@ -141,18 +142,22 @@ class LoopConfig:
     #: peak joint speed, rad/s, of the lead-in to the clip's first pose on a bus (capped by each joint's
     #: ``velocity_scale x max_velocity``); 0 = no lead-in (the first ticks go there at full speed)
     lead_in_speed: float = 0.5
+    #: the look-ahead plan's soft cost on the change of acceleration (:func:`~retarget.control.plan.plan_path`'s
+    #: ``jerk_cost``; 0: follow the clip as closely as the limits allow, however the acceleration flips)
+    jerk_cost: float = JERK_COST
     #: the collision model every goal is checked against before it is written (the pose and the joint-space
     #: segment from the last goal, :mod:`~retarget.control.safety`); None: no check
     collision: CollisionModel | None = field(default=None, compare=False)
 
     #: the documented ranges (a run's length and every check stay bounded): ticks per second, clip speed,
-    #: velocity fraction, lead-in rad/s (or 0), IK sweeps per tick, IK tolerance metres
+    #: velocity fraction, lead-in rad/s (or 0), IK sweeps per tick, IK tolerance metres, the plan's jerk cost
     RATE_RANGE = (1.0, 1000.0)
     SPEED_RANGE = (0.01, 100.0)
     VELOCITY_SCALE_RANGE = (0.01, 1.0)
     LEAD_IN_SPEED_RANGE = (0.01, 20.0)
     IK_ITERATIONS_RANGE = (1.0, 1000.0)
     IK_TOLERANCE_RANGE = (0.0, 0.1)  # (> 0, checked first)
+    JERK_COST_RANGE = (0.0, 1.0)
 
     def __post_init__(self) -> None:
         _require(_finite(self.rate) and self.rate > 0, "rate", "Expected a tick rate > 0 Hz", self.rate)
@@ -180,6 +185,9 @@ class LoopConfig:
             _within(speed, self.LEAD_IN_SPEED_RANGE, "lead_in_speed", message)
         every = self.progress_every
         _require(_finite(every) and every > 0, "progress_every", "Expected a period > 0 s", every)
+        jerk, message = self.jerk_cost, "Expected a jerk cost from {lo:g} to {hi:g} (0: none)"
+        _require(_finite(jerk), "jerk_cost", message.format(lo=0, hi=self.JERK_COST_RANGE[1]), jerk)
+        _within(jerk, self.JERK_COST_RANGE, "jerk_cost", message)
 
 
 def _within(value: float, bounds: tuple[float, float], key: str, message: str) -> None:

@@ -9,11 +9,14 @@ all joints at once, on the goal path ``g`` ``(n, n_joints)``:
 1. a joint whose goal path is already within its limits (from ``q_start`` at rest) is passed through unchanged
    and costs nothing;
 2. the others get the path ``q`` nearest their goals in the least-squares sense, with every step within the
-   velocity limit and every change of step within the acceleration limit, and a soft cost on speeds above
+   velocity limit and every change of step within the acceleration limit, a soft cost on speeds above
    ``easy_speed`` of the limit (``speed_cost``: a joint reaches its full speed only where the goal really needs
-   it, not wherever it would help a little):
+   it, not wherever it would help a little) and one on the change of acceleration (``jerk_cost``: the
+   acceleration does not flip between its limits from one slot to the next to win a fraction of a millimetre,
+   :data:`JERK_COST`):
 
        minimise  1/2 sum (q - g)^2 + speed_cost/2 sum max(0, |dq| / vmax - easy_speed)^2
+                                   + jerk_cost/2 sum (d^3 q / amax)^2
        subject to |dq| <= vmax,  |d^2 q| <= 0.97 amax   (room for step 3 to catch up: ``ACCEL_SHARE``),
 
    by ADMM (:mod:`~retarget.control.fit`).  Unlike a pass of the profile that only follows, it turns early for a
@@ -23,14 +26,15 @@ all joints at once, on the goal path ``g`` ``(n, n_joints)``:
    played position only: :func:`solve_and_plan`), the first term is the tool point's error instead, linearised at
    the goals, and every joint that moves plans with the others: where one must fall behind its goal, the others
    make up for it (the arm's redundancy, which a fit joint by joint leaves unused).  wx250s, tracking p95 with the
-   joints' fit -> the task's: motion_dance right 13.3 -> 9.7 mm, left 29.9 -> 23.1; motion_walk left 19.7 -> 8.7;
-   unity_walk_random right 12.5 -> 4.5; motion_basket right 2.6 -> 1.0 (targets unfiltered, bench_smooth.py);
+   joints' fit -> the task's (targets unfiltered, bench_smooth.py): motion_dance right 13.3 -> 9.3 mm, left
+   29.9 -> 23.2; motion_walk left 19.7 -> 10.2; unity_walk_random right 12.5 -> 5.3; motion_basket right 2.6 ->
+   1.8;
 3. a last forward pass of the profile over that path from the start pose at rest: the plan's first step starts
    from rest at ``q_start``, and the result is exactly what the profile allows (ADMM's few sweeps leave the
    constraints nearly but not exactly met), so the loop's own limiter, fed the plan tick by tick, reproduces it.
 
 The cost: on ``motion_dance.bvh`` (1 559 ticks, three or four joints to plan) the joints' fit takes 6-7 ms in all
-(20 sweeps of a few numpy passes and one FFT pair each), the task's 15-18 ms (50 sweeps, a ``k x k`` product per
+(20 sweeps of a few numpy passes and one FFT pair each), the task's 8-10 ms (20 sweeps, a ``k x k`` product per
 tick in each, and the Jacobians), then the last pass (about 0.3 us per joint and tick where the profile has work to
 do; the slots where the joint stays on its goal are copied, :func:`_follow`).  A limit of the method: a clip that
 starts in a motion which keeps a joint at its acceleration limit from the first tick on (the plan itself starts at
@@ -54,7 +58,7 @@ import numpy as np
 import numpy.typing as npt
 
 from retarget.arm.kinematics import Chain
-from retarget.control.fit import check_task, fit_joints, fit_task, task_of
+from retarget.control.fit import Costs, check_task, fit_joints, fit_task, task_of
 from retarget.control.profile import stop_speed
 from retarget.ik.bound import State, shared_bound
 from retarget.ik.result import IKResult
@@ -63,11 +67,16 @@ __all__ = ["PathPlan", "plan_path", "solve_and_plan"]
 
 Array = npt.NDArray[np.float64]
 
-ITERATIONS = 20  #: ADMM sweeps of the joints' fit (15-40 give the same tracking on the shared clips within ~0.5 mm p95)
-TASK_ITERATIONS = 50  #: ADMM sweeps of the task's fit: slower to settle (wx250s on motion_basket right p95 1.14 mm
-#: after 20, 1.05 after 40, 1.04 after 50, 1.03 after 60, 0.99 after 300), each a third dearer (dance: 15-18 ms in all)
+ITERATIONS = 20  #: ADMM sweeps (the task fit: 30 gain ~0.1 mm p95 on the shared clips, 10 lose 0.2-40 mm)
 SPEED_COST = 0.2  #: the soft cost on speeds above ``easy_speed`` of the limit, per (share of the limit)^2 and slot
 EASY_SPEED = 0.85  #: the fraction of each joint's velocity limit above which speed costs
+#: the soft cost on the change of acceleration per slot, per (share of the acceleration limit)^2 and slot.  Without
+#: it a fit that follows a clip as closely as the limits allow flips the acceleration between the limits tick to tick
+#: where the clip moves fast.  wx250s, commanded jerk RMS (rad/s^3) and tracking p95 (mm) by the cost: motion_basket
+#: right 0: 2334, 1.28 (1.04 after 50 sweeps, 0.99 after 300); 1e-5: 1120, 1.40; 1e-4: 314, 1.67; 3e-4: 230, 1.80;
+#: 1e-3: 185, 1.99; 3e-3: 165, 2.21.  motion_dance right 0: 1643, 9.4; 3e-4: 518, 9.3; 3e-3: 360, 9.6.  (The fit per
+#: joint with the fixed 6 Hz filter, before: basket 169, 2.8; dance 375, 13.5.  TODAY, unlimited: 4427 and 4339.)
+JERK_COST = 3e-4
 #: the look-ahead IK pass's tolerance, a share of the solver's own (``CCDSolver.tolerance``, 1 mm: the causal
 #: loop's).  The early-out leaves a tick anywhere within the tolerance (a DLS step aims at a quarter of it), and the
 #: plan follows those solutions where the limits allow, so at 1 mm the error saws between ~0 and 0.25 mm from tick
@@ -85,9 +94,10 @@ def plan_path(
     upper: npt.ArrayLike,
     max_step: npt.ArrayLike,
     max_accel: npt.ArrayLike,
-    iterations: int | None = None,
+    iterations: int = ITERATIONS,
     speed_cost: float = SPEED_COST,
     easy_speed: float = EASY_SPEED,
+    jerk_cost: float = JERK_COST,
     jacobians: npt.ArrayLike | None = None,
     residuals: npt.ArrayLike | None = None,
 ) -> Array:
@@ -97,8 +107,7 @@ def plan_path(
     ``q_start`` ``(n_joints,)`` rad: the pose before the first goal, at rest (inside the limits);
     ``lower``/``upper`` ``(n_joints,)`` rad: the joint limits; ``max_step`` ``(n_joints,)`` rad per slot (> 0):
     the velocity limit; ``max_accel`` ``(n_joints,)`` rad per slot^2 (> 0): the acceleration limit;
-    ``iterations`` (>= 0; default :data:`ITERATIONS`, with ``jacobians`` :data:`TASK_ITERATIONS`) ADMM sweeps (0:
-    the profile follows the goals, causally); ``speed_cost`` (>= 0) and
+    ``iterations`` (>= 0) ADMM sweeps (0: the profile follows the goals, causally); ``speed_cost`` (>= 0) and
     ``easy_speed`` (0..1): the soft cost on speeds above that fraction of the limit.  Never exceeds the limits (from
     ``q_start`` at rest); goals outside the joint limits are followed to the limit.
 
@@ -126,12 +135,15 @@ def plan_path(
     n, m = g.shape
     q0, lo, hi, vmax, amax = (np.broadcast_to(np.asarray(x, dtype=np.float64), (m,)) for x in
                               (q_start, lower, upper, max_step, max_accel))  # fmt: skip
-    if iterations is not None and iterations < 0:
+    if iterations < 0:
         raise ValueError(f"Expected iterations >= 0, got {iterations}")
     if np.any(vmax <= 0) or np.any(amax <= 0):
         raise ValueError("Expected max_step and max_accel > 0")
     if speed_cost < 0 or not 0.0 < easy_speed <= 1.0:
         raise ValueError(f"Expected speed_cost >= 0 and 0 < easy_speed <= 1, got {speed_cost} and {easy_speed}")
+    if not jerk_cost >= 0:
+        raise ValueError(f"Expected jerk_cost >= 0, got {jerk_cost}")
+    costs = Costs(speed_cost, easy_speed, jerk_cost)
     arrays = check_task(jacobians, residuals, n, m)
     out = g.copy()
     if n == 0:
@@ -144,11 +156,10 @@ def plan_path(
     if task is not None:
         hard = task.joints
     aims = g[:, hard].T
-    sweeps = iterations if iterations is not None else ITERATIONS if task is None else TASK_ITERATIONS
-    if sweeps > 0 and task is not None:
-        aims = fit_task(aims, q0[hard], vmax[hard], amax[hard], sweeps, speed_cost, easy_speed, task)
-    elif sweeps > 0:
-        aims = fit_joints(aims, q0[hard], vmax[hard], amax[hard], sweeps, speed_cost, easy_speed)
+    if iterations > 0 and task is not None:
+        aims = fit_task(aims, q0[hard], vmax[hard], amax[hard], iterations, costs, task)
+    elif iterations > 0:
+        aims = fit_joints(aims, q0[hard], vmax[hard], amax[hard], iterations, costs)
     for row, j in zip(aims.tolist(), hard, strict=True):
         out[:, j] = _follow(row, float(q0[j]), limits[j])
     return out
@@ -297,15 +308,16 @@ def solve_and_plan(
     max_step: Array,
     max_accel: Array,
     chain: Chain | None = None,
+    jerk_cost: float = JERK_COST,
 ) -> PathPlan:
     """IK of every target ``positions`` ``(n, 3)`` m (``rotations`` ``(n, 3, 3)`` or None), each warm-started from
     the last solution (the first from ``q_start`` ``(n_joints,)`` rad), then :func:`plan_path` of the solutions from
-    ``q_start`` at rest (limits as there, per slot).  With the arm's ``chain`` and no rotations the plan fits the tool
-    point, not the joints (:func:`plan_path`'s ``jacobians`` and ``residuals``, at the solutions; an orientation
-    target keeps the joints' fit, which holds the whole pose).  With a collision-aware solver (its ``collision``
-    model) each planned move, from ``q_start`` then tick to tick, is bounded from the notes its IK pass made
-    (:meth:`~retarget.ik.bound.ClearanceBound.prove`): the loop's goal check takes a move's bound when it keeps the
-    clearance and checks the move itself otherwise."""
+    ``q_start`` at rest (limits and ``jerk_cost`` as there, per slot).  With the arm's ``chain`` and no rotations
+    the plan fits the tool point, not the joints (:func:`plan_path`'s ``jacobians`` and ``residuals``, at the
+    solutions; an orientation target keeps the joints' fit, which holds the whole pose).  With a collision-aware
+    solver (its ``collision`` model) each planned move, from ``q_start`` then tick to tick, is bounded from the notes
+    its IK pass made (:meth:`~retarget.ik.bound.ClearanceBound.prove`): the loop's goal check takes a move's bound
+    when it keeps the clearance and checks the move itself otherwise."""
     t0 = time.perf_counter()
     model = getattr(solver, "collision", None)  # (a CCDSolver's collision model; None: none)
     bound = None if model is None else shared_bound(model)
@@ -318,7 +330,7 @@ def solve_and_plan(
             tool, jacobians = chain.tool_jacobians(qs)
             residuals = tool - positions
         planned = plan_path(qs, q_start, lower=lower, upper=upper, max_step=max_step, max_accel=max_accel,
-                            jacobians=jacobians, residuals=residuals)  # fmt: skip
+                            jerk_cost=jerk_cost, jacobians=jacobians, residuals=residuals)  # fmt: skip
     except BaseException:
         if bound is not None:
             bound.record(False)

@@ -246,6 +246,7 @@ class ControlLoop:
             max_step=arm.max_velocity * cfg.velocity_scale / cfg.rate,
             max_accel=arm.max_acceleration / cfg.rate**2,
             chain=arm.chain,
+            jerk_cost=cfg.jerk_cost,
         )
         self._plan_from = q0
         log.info("look-ahead: %d ticks solved and planned in %.3f s", n, self._plan.seconds)

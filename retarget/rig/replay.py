@@ -269,6 +269,7 @@ class _RigSource(ClipSlots):
                 upper=plant.upper,
                 max_step=plant.max_velocity * cfg.velocity_scale / cfg.rate,
                 max_accel=plant.max_acceleration / cfg.rate**2,
+                jerk_cost=cfg.jerk_cost,
             )
             if replay.models is not None:
                 self._prove(np.vstack([start[None], self.q[:n]]))

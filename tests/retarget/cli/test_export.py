@@ -11,7 +11,9 @@ import pytest
 
 import retarget
 from retarget.cli import main
-from tests.helpers import shared_clip_params
+from tests.helpers import SHARED_BVH, shared_clip_params
+
+DANCE = SHARED_BVH / "motion_dance.bvh"
 
 
 def export(capsys, *args: str) -> tuple[int, str, str]:
@@ -87,8 +89,11 @@ def test_every_shared_clip_and_side_stays_within_limits(capsys, tmp_path, clip, 
         (["--arm", "nope"], r"nope"),
         (["--end", "0"], r"--end: Expected an end time after start \(0 s\)"),
         (["-o", "/nonexistent/dir/traj.csv"], r"/nonexistent/dir/traj\.csv"),
+        (["--jerk-cost", "-1"], r"--jerk-cost: Expected a jerk cost from 0 to 1 \(0: none\) \(got -1\.0\)"),
+        (["--jerk-cost", "2"], r"--jerk-cost: Expected a jerk cost from 0 to 1 \(0: none\) \(got 2\.0\)"),
+        (["--jerk-cost", "nan"], r"--jerk-cost: Expected a jerk cost from 0 to 1 \(0: none\) \(got nan\)"),
     ],
-    ids=["missing-clip", "rate", "rate-text", "arm", "end", "output-dir"],
+    ids=["missing-clip", "rate", "rate-text", "arm", "end", "output-dir", "jerk-negative", "jerk-high", "jerk-nan"],
 )
 def test_bad_input_exits_2_with_one_line(capsys, args, match):
     import re
@@ -98,6 +103,23 @@ def test_bad_input_exits_2_with_one_line(capsys, args, match):
     assert out == ""
     lines = err.strip().splitlines()
     assert len(lines) == 1 and re.search(match, lines[0]), err
+
+
+@pytest.mark.skipif(not DANCE.is_file(), reason=f"{DANCE} not found (set RETARGET_SHARED_BVH)")
+def test_jerk_cost_trades_following_for_smoothness(capsys):
+    """The plan's jerk cost: 0 follows the clip as closely as the limits allow, a higher one trades that for a
+    smoother acceleration, the default between (3 s of motion_dance, whose joints need planning; the RMS of the
+    commanded joints' third differences)."""
+    arm = retarget.load_arm("wx250s")
+    runs = {}
+    for cost in ("0", None, "0.01", "0.0003"):
+        flags = () if cost is None else ("--jerk-cost", cost)
+        code, out, err = export(capsys, str(DANCE), "--end", "3", *flags)
+        assert code == 0, err
+        runs[cost] = trajectory(out, arm)[1]
+    jerk = {k: float(np.sqrt(np.mean(np.diff(q, 3, axis=0) ** 2))) for k, q in runs.items()}
+    assert jerk["0.01"] < jerk[None] < jerk["0"]
+    assert np.array_equal(runs["0.0003"], runs[None])  # the default is plan.JERK_COST
 
 
 def test_help_has_examples(capsys):

@@ -9,7 +9,7 @@ import retarget
 from retarget.control.clock import VirtualClock
 from retarget.control.limits import StepLimiter
 from retarget.control.loop import LoopConfig, TickRecord
-from retarget.control.plan import _follow, _steady, plan_path
+from retarget.control.plan import JERK_COST, _follow, _steady, plan_path
 from retarget.control.replay import ControlLoop
 from retarget.mapping import Targets, Workspace
 
@@ -131,18 +131,22 @@ def _two_joints_one_point() -> tuple[np.ndarray, dict[str, object]]:
     return goals, limits
 
 
-def test_the_task_fit_makes_up_for_a_joint_that_falls_behind_with_one_that_can() -> None:
+@pytest.mark.parametrize(
+    ("jerk_cost", "share"), [(JERK_COST, 0.35), (0.0, 0.05)], ids=["default-jerk-cost", "no-jerk-cost"]
+)
+def test_the_task_fit_makes_up_for_a_joint_that_falls_behind_with_one_that_can(jerk_cost: float, share: float) -> None:
+    """Measured, worst and RMS task error against the joints' fit (12.3 and 2.5 mm): 3.5 and 0.7 mm with the default
+    jerk cost, 0.35 and 0.08 without it (it keeps the helping joint's acceleration from flipping tick to tick)."""
     goals, limits = _two_joints_one_point()
     target = goals.sum(axis=1)
     joints = plan_path(goals, np.zeros(2), **limits)  # type: ignore[arg-type]
-    task = plan_path(goals, np.zeros(2), jacobians=np.ones((len(goals), 1, 2)), **limits)  # type: ignore[arg-type]
+    task = plan_path(goals, np.zeros(2), jacobians=np.ones((len(goals), 1, 2)), jerk_cost=jerk_cost,
+                     **limits)  # type: ignore[arg-type]  # fmt: skip
     joint_error, task_error = np.abs(joints.sum(axis=1) - target), np.abs(task.sum(axis=1) - target)
     assert np.array_equal(joints[:, 1], goals[:, 1])  # alone, joint 1 is within its limits: passed through
-    assert np.abs(task[:, 1] - goals[:, 1]).max() > 0.005  # in the task's fit it moves to help (measured 11 mm)
-    # measured: worst 0.05 against 12.5 mm, RMS 0.01 against 2.4
-    assert task_error.max() < 0.01 * joint_error.max() and np.sqrt(np.mean(task_error**2)) < 0.01 * np.sqrt(
-        np.mean(joint_error**2)
-    )
+    assert np.abs(task[:, 1] - goals[:, 1]).max() > 0.005  # in the task's fit it moves to help (measured 13-15 mm)
+    assert task_error.max() < share * joint_error.max()
+    assert np.sqrt(np.mean(task_error**2)) < share * np.sqrt(np.mean(joint_error**2))
 
 
 def test_a_task_plan_corrects_the_goals_own_residual() -> None:
@@ -174,6 +178,8 @@ def test_a_task_plan_corrects_the_goals_own_residual() -> None:
             r"Expected residuals of shape \(5, 2\), got \(5, 3\)",
         ),
         (np.zeros((5, 3)), {"residuals": np.zeros((5, 3))}, r"Expected jacobians with residuals, got residuals alone"),
+        (np.zeros((5, 3)), {"jerk_cost": -1.0}, r"Expected jerk_cost >= 0, got -1\.0"),
+        (np.zeros((5, 3)), {"jerk_cost": float("nan")}, r"Expected jerk_cost >= 0, got nan"),
     ],
     ids=[
         "1-d goals",
@@ -185,6 +191,8 @@ def test_a_task_plan_corrects_the_goals_own_residual() -> None:
         "jacobians too short",
         "residuals of the wrong shape",
         "residuals alone",
+        "negative jerk cost",
+        "nan jerk cost",
     ],
 )
 def test_bad_arguments(goals: np.ndarray, kwargs: dict[str, object], match: str) -> None:
