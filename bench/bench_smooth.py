@@ -28,7 +28,7 @@ Per clip, arm and side, today | now:
   a dribbling hand followed to 1.0 mm within the acceleration limit needs the acceleration flipping between its
   limits from tick to tick (the plan without its jerk cost: p95 1.28 mm after 20 sweeps, 1.04 after 50, 0.99 after
   300, at a commanded jerk RMS of 2 334 rad/s^3; with the default cost 230; TODAY 4 427; the joints' fit and the 6 Hz
-  filter before: 169 at 2.8 mm).  ``--flags`` cannot set the cost: plan_path's ``jerk_cost``;
+  filter before: 169 at 2.8 mm; ``--flags="--jerk-cost 0"`` shows the first);
 - ``RTF``: the offline real-time factor of the run (clip seconds per wall second, the best of ``--runs`` runs, each
   a fresh loop as export builds it; target >= 100), the look-ahead plan's IK and passes included (one run per row
   read 72-77x on rows that read 107-132x a minute earlier on this shared 2-core VM);
