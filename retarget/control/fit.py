@@ -105,10 +105,11 @@ _TASK_RHO = (0.01, 0.001, 1.0)
 _TASK_RELAX = 1.8
 
 
-def check_task(jacobians: npt.ArrayLike | None, residuals: npt.ArrayLike | None, n: int, m: int
-                 ) -> tuple[Array, Array] | None:  # fmt: skip
-    """:func:`plan_path`'s ``jacobians`` ``(n, d, m)`` and ``residuals`` ``(n, d)`` (default zeros) checked, or None
-    without ``jacobians``."""
+def check_task(
+    jacobians: npt.ArrayLike | None, residuals: npt.ArrayLike | None, n: int, m: int
+) -> tuple[Array, Array] | None:
+    """:func:`~retarget.control.plan.plan_path`'s ``jacobians`` ``(n, d, m)`` and ``residuals`` ``(n, d)`` (default
+    zeros), checked; None without ``jacobians``."""
     if jacobians is None:
         if residuals is not None:
             raise ValueError("Expected jacobians with residuals, got residuals alone")
@@ -124,8 +125,8 @@ def check_task(jacobians: npt.ArrayLike | None, residuals: npt.ArrayLike | None,
 
 def task_of(goals: Array, jacobians: Array, r: Array, hard: list[int]) -> Task | None:
     """The :class:`Task` of ``goals`` ``(n, n_joints)`` (``jacobians`` and residuals ``r`` as
-    :func:`plan_path`'s): the joints in ``hard`` and every other joint that moves (its goal path is not constant)
-    and moves the task point; None when none of them moves it."""
+    :func:`~retarget.control.plan.plan_path`'s) over the joints in ``hard`` and every other joint that moves (its
+    goal path is not constant) and moves the task point; None when none of them moves it."""
     m = goals.shape[1]
     reach = np.sqrt(np.mean(jacobians**2, axis=(0, 1)))  # (m,) rms metres per rad
     moving = np.ptp(goals, axis=0) > 0
@@ -141,10 +142,10 @@ def task_of(goals: Array, jacobians: Array, r: Array, hard: list[int]) -> Task |
 
 def fit_task(goal: Array, q0: Array, vmax: Array, amax: Array, iterations: int, costs: Costs, task: Task) -> Array:
     """:func:`fit_joints` with the task's cost (:class:`Task`) in place of ``1/2 |q - g|^2``: ADMM with three
-    blocks, the task term (a ``k x k`` solve per tick, inverted once), the speeds and the changes of speed, over
-    relaxed (:data:`_TASK_RELAX`, Boyd et al. sec. 3.4.3).  Each
-    joint's weights scale with its own task weight (the mean of its diagonal entry of ``A``): a diagonal
-    preconditioner, so that a long lever and a short one settle alike.
+    blocks, the task term (a ``k x k`` solve per tick, inverted once: :func:`_task_prox`), the speeds and the changes
+    of speed, over-relaxed (:data:`_TASK_RELAX`, Boyd et al. sec. 3.4.3); the jerk cost is a term of the joints' own
+    update.  Each joint's weights scale with its own task weight (the mean of its diagonal entry of ``A``): a
+    diagonal preconditioner, so that a long lever and a short one settle alike.
 
     The path is kept unmirrored (``h`` slots: padding, goals, padding), its steps ``D q`` ``(k, h - 1)`` and changes
     of step ``-L q`` ``(k, h)`` (``L = D'D``, the path's Laplacian): the mirrored circle's values, each once, so every
@@ -160,13 +161,8 @@ def fit_task(goal: Array, q0: Array, vmax: Array, amax: Array, iterations: int, 
     twiddle, eigen = _cosine_basis(h)
     rho3 = (costs.jerk * weight / amax[:, None] ** 2)[:, :, None]  # the jerk cost: a term of the update itself
     inverse = _inverse(rho0, rho1, rho2, rho3, eigen)
-    inv = np.moveaxis(np.linalg.inv(np.moveaxis(task.A, -1, 0) + np.diag(rho0[:, 0])), 0, -1)  # (A + rho0)^-1
-    after = h - _PAD - n  # the padding after the last goal keeps the last tick's task (its residual too)
-    inv = np.concatenate([inv, np.repeat(inv[:, :, -1:], after, axis=2)], axis=2)
-    aims = x[:, _PAD:]  # (k, n + after): the goals, then the last one
-    solve = inv * rho0[None, :, :]  # (k, k, n + after): (A + rho0)^-1 rho0, the task term's prox on v - g
-    b = np.concatenate([task.b, np.repeat(task.b[:, -1:], after, axis=1)], axis=1)
-    base = aims - (inv * b[None]).sum(axis=1)  # g - (A + rho0)^-1 b
+    solve, shift = _task_prox(task, rho0, h - _PAD - n)
+    aims = x[:, _PAD:]  # (k, h - PAD): the goals, then the last one
     easy, vcap, acap = costs.easy_speed * vmax[:, None], vmax[:, None], ACCEL_SHARE * amax[:, None]
     keep = r_speed / (r_speed + costs.speed)
     pad_keep = rho0 / (weight + rho0)  # the padding before the first goal: 1/2 |q - q0|^2 at the joint's weight
@@ -184,7 +180,7 @@ def fit_task(goal: Array, q0: Array, vmax: Array, amax: Array, iterations: int, 
         d2 = -_steps_t(d1)
         v = z0 + al * (q - z0) + u0
         z0 = x + pad_keep * (v - x)
-        z0[:, real] = base + (solve * (v[:, real] - aims)[None]).sum(axis=1)
+        z0[:, real] = aims + shift + (solve * (v[:, real] - aims)[None]).sum(axis=1)
         u0 = v - z0
         u1 += z1 + al * (d1 - z1)
         within = clip(u1, -easy, easy)
@@ -194,6 +190,16 @@ def fit_task(goal: Array, q0: Array, vmax: Array, amax: Array, iterations: int, 
         z2 = clip(u2, -acap, acap)
         u2 -= z2
     return q[:, _PAD : _PAD + n]
+
+
+def _task_prox(task: Task, rho0: Array, after: int) -> tuple[Array, Array]:
+    """The task term's prox at each tick: ``z = g + shift + solve (v - g)``, with ``solve = (A + rho0)^-1 rho0``
+    ``(k, k, n + after)`` and ``shift = -(A + rho0)^-1 b`` ``(k, n + after)``; the ``after`` slots of padding past
+    the last goal keep the last tick's task (its residual too)."""
+    inv = np.moveaxis(np.linalg.inv(np.moveaxis(task.A, -1, 0) + np.diag(rho0[:, 0])), 0, -1)  # (k, k, n)
+    inv = np.concatenate([inv, np.repeat(inv[:, :, -1:], after, axis=2)], axis=2)
+    b = np.concatenate([task.b, np.repeat(task.b[:, -1:], after, axis=1)], axis=1)
+    return inv * rho0[None, :, :], -(inv * b[None]).sum(axis=1)
 
 
 def _inverse(rho0: Array, rho1: Array, rho2: Array, rho3: Array, eigen: Array) -> Array:
