@@ -39,6 +39,8 @@ examples:
   retarget export dance.bvh --side left --start 2 --end 10 -o left.csv
   retarget export dance.bvh --arm robot.urdf --tip ee_link -o traj.csv   a URDF with several leaves
   retarget export dance.bvh --rig aloha -o both.csv       both arms of a rig: time_s, <arm>/<joint>_rad
+  retarget export dance.bvh --jerk-cost 0 -o tight.csv     follow as closely as the limits allow (more jerk)
+  retarget export mocap.bvh --filter-cutoff 6 -o traj.csv  a fixed cutoff instead of auto (from the clip's noise)
 """
 
 
