@@ -16,6 +16,7 @@ from retarget.control.loop import LoopConfig
 from retarget.mapping import Targets, Workspace
 from retarget.mapping.config import MappingConfig
 from retarget.rig import RigReplay, RigTargets, load_rig, rig_targets
+from retarget.rig.replay import _tool_task
 from retarget.rig.telemetry import RigTelemetry
 from tests.helpers import SHARED_BVH, sampled_min_clearance
 
@@ -125,3 +126,23 @@ def test_the_lead_in_moves_every_arm_from_rest_to_the_clips_first_poses():
     for r in lead[::5]:
         poses = {a.name: replay.arm_record(r, a.name).q_cmd for a in rig.arms}
         assert sampled_min_clearance(rig, poses, spacing=0.01) > 0
+
+
+def test_the_plan_fits_each_arms_tool_point_in_its_own_rows_and_joints():
+    """The rig's look-ahead task: block-diagonal Jacobians (an arm's joints move only its own tool point), each block
+    the arm's own, and each arm's residual its tool point's distance from its target."""
+    rig = load_rig("wx250s-pair")
+    targets = rig_targets(retarget.load_bvh(DEMO_CLIP), rig)
+    replay = RigReplay(rig, targets, config=LoopConfig(max_ticks=30), clock=VirtualClock())
+    q = np.random.default_rng(3).uniform(replay.plant.lower, replay.plant.upper, (7, len(replay.plant.lower)))
+    aims = np.random.default_rng(4).normal(0.3, 0.1, (7, 3 * len(rig.arms)))
+    jacobians, residuals = _tool_task(replay, q, aims)
+    assert jacobians.shape == (7, 3 * len(rig.arms), q.shape[1]) and residuals.shape == (7, 3 * len(rig.arms))
+    for k, (a, part) in enumerate(zip(rig.arms, replay.plant.slices, strict=True)):
+        rows = slice(3 * k, 3 * k + 3)
+        tool, own = a.arm.chain.tool_jacobians(q[:, part])
+        np.testing.assert_array_equal(jacobians[:, rows, part], own)
+        others = np.ones(q.shape[1], dtype=bool)
+        others[part] = False
+        assert not jacobians[:, rows][:, :, others].any()
+        np.testing.assert_allclose(residuals[:, rows], tool - aims[:, rows])
