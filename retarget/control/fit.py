@@ -76,8 +76,7 @@ def fit_joints(goal: Array, q0: Array, vmax: Array, amax: Array, iterations: int
         d1 = _diff(q)
         d2 = _diff(d1)
         u1 += d1
-        within = clip(u1, -easy, easy)
-        z1 = clip(within + keep * (u1 - within), -vcap, vcap)  # the prox of the soft cost and the hard limit
+        z1 = _speed_prox(u1, easy, keep, vcap)
         u1 -= z1
         u2 += d2
         z2 = clip(u2, -acap, acap)
@@ -183,13 +182,19 @@ def fit_task(goal: Array, q0: Array, vmax: Array, amax: Array, iterations: int, 
         z0[:, real] = aims + shift + (solve * (v[:, real] - aims)[None]).sum(axis=1)
         u0 = v - z0
         u1 += z1 + al * (d1 - z1)
-        within = clip(u1, -easy, easy)
-        z1 = clip(within + keep * (u1 - within), -vcap, vcap)  # the prox of the soft cost and the hard limit
+        z1 = _speed_prox(u1, easy, keep, vcap)
         u1 -= z1
         u2 += z2 + al * (d2 - z2)
         z2 = clip(u2, -acap, acap)
         u2 -= z2
     return q[:, _PAD : _PAD + n]
+
+
+def _speed_prox(u: Array, easy: Array, keep: float, cap: Array) -> Array:
+    """The prox of the soft speed cost and the hard limit on steps ``u`` ``(k, h)``: within ``easy`` ``(k, 1)`` a
+    step is kept, beyond it ``keep`` of the excess is, and the result is clipped to ``cap`` ``(k, 1)``."""
+    within = np.clip(u, -easy, easy)
+    return np.clip(within + keep * (u - within), -cap, cap)
 
 
 def _task_prox(task: Task, rho0: Array, after: int) -> tuple[Array, Array]:
