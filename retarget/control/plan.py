@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import partial
 from typing import Protocol
@@ -63,7 +64,7 @@ from retarget.control.profile import stop_speed
 from retarget.ik.bound import State, shared_bound
 from retarget.ik.result import IKResult
 
-__all__ = ["PathPlan", "plan_path", "solve_and_plan"]
+__all__ = ["PathPlan", "plan_path", "solve_and_plan", "tool_task"]
 
 Array = npt.NDArray[np.float64]
 
@@ -327,8 +328,7 @@ def solve_and_plan(
         qs = np.array([r.q for r in results], dtype=np.float64).reshape(len(results), len(q_start))
         jacobians = residuals = None
         if chain is not None and rotations is None:  # position only: plan to the tool point
-            tool, jacobians = chain.tool_jacobians(qs)
-            residuals = tool - positions
+            jacobians, residuals = tool_task([(chain, slice(None))], qs, positions)
         planned = plan_path(qs, q_start, lower=lower, upper=upper, max_step=max_step, max_accel=max_accel,
                             jerk_cost=jerk_cost, jacobians=jacobians, residuals=residuals)  # fmt: skip
     except BaseException:
@@ -340,6 +340,27 @@ def solve_and_plan(
         bound.prove(starts, planned, notes, index)
     seconds = time.perf_counter() - t0
     return PathPlan(planned, results, np.asarray(positions), tuple(clamped.tolist()), seconds)
+
+
+def tool_task(parts: Sequence[tuple[Chain, slice]], q: Array, targets: Array) -> tuple[Array, Array]:
+    """:func:`plan_path`'s ``jacobians`` ``(n, 3 n_parts, n_joints)`` and ``residuals`` ``(n, 3 n_parts)`` m for
+    the poses ``q`` ``(n, n_joints)`` rad and the targets ``(n, 3 n_parts)`` m (base frames), one tool point per
+    part: each ``(chain, joints)`` (one arm: ``slice(None)``; a rig: each arm's slice of the joint vector) gives its
+    tool point's Jacobian in its own three rows and its own joints (block-diagonal: an arm's joints move only its
+    own tool), and its residual, the tool point minus its target.
+
+    >>> from retarget.arm.load import load_arm
+    >>> arm = load_arm("wx250s")
+    >>> J, r = tool_task([(arm.chain, slice(None))], arm.home[None], np.zeros((1, 3)))
+    >>> J.shape, bool(np.allclose(r, arm.chain.tool_points(arm.home[None])))
+    ((1, 3, 6), True)
+    """
+    jacobians, residuals = np.zeros((len(q), 3 * len(parts), q.shape[1])), np.empty((len(q), 3 * len(parts)))
+    for k, (chain, joints) in enumerate(parts):
+        rows = slice(3 * k, 3 * k + 3)
+        tool, jacobians[:, rows, joints] = chain.tool_jacobians(q[:, joints])
+        residuals[:, rows] = tool - targets[:, rows]
+    return jacobians, residuals
 
 
 def solve_path(solver: _Solver, positions: Array, rotations: Array | None, q_start: Array) -> tuple[IKResult, ...]:

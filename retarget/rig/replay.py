@@ -34,7 +34,7 @@ import numpy.typing as npt
 from retarget.control.bus import Bus
 from retarget.control.clock import Clock, MonotonicClock
 from retarget.control.loop import LoopConfig, TickRecord, run_ticks
-from retarget.control.plan import plan_path
+from retarget.control.plan import plan_path, tool_task
 from retarget.control.replay import ClipSlots, ControlLoop, plan_lead_in
 from retarget.control.source import JointGoal, TickGoal
 from retarget.control.stats import TickStats
@@ -243,20 +243,6 @@ class RigReplay:
         return _summarize(self, ticks, records, duration_s=played)
 
 
-def _tool_task(replay: RigReplay, q: Array, targets: Array) -> tuple[Array, Array]:
-    """The plan's task (:func:`~retarget.control.plan.plan_path`'s ``jacobians`` and ``residuals``) for the IK
-    poses ``q`` ``(n, plant n_joints)`` rad and the targets ``(n, 3 n_arms)`` m: every arm's tool point, its Jacobian
-    ``(n, 3, n_joints)`` in its own rows and joints (block-diagonal: an arm's joints move only its own tool), and its
-    distance from its target."""
-    arms = replay.rig.arms
-    jacobians, residuals = np.zeros((len(q), 3 * len(arms), q.shape[1])), np.empty((len(q), 3 * len(arms)))
-    for k, (a, part) in enumerate(zip(arms, replay.plant.slices, strict=True)):
-        rows = slice(3 * k, 3 * k + 3)
-        tool, jacobians[:, rows, part] = a.arm.chain.tool_jacobians(q[:, part])
-        residuals[:, rows] = tool - targets[:, rows]
-    return jacobians, residuals
-
-
 class _RigSource(ClipSlots):
     """Each slot's goal of a :class:`RigReplay`: the lead-in's, then every arm's IK pose of the slot (the slots and
     clip times of the first arm's loop: every arm's are the same)."""
@@ -276,7 +262,8 @@ class _RigSource(ClipSlots):
             plant = replay.plant
             self.q = self.q.copy()
             start = self.q[0] if self.with_lead_in else np.clip(q_start, plant.lower, plant.upper)
-            jacobians, residuals = _tool_task(replay, self.q[:n], self.targets[:n])
+            parts = [(a.arm.chain, part) for a, part in zip(replay.rig.arms, plant.slices, strict=True)]
+            jacobians, residuals = tool_task(parts, self.q[:n], self.targets[:n])  # each arm's own tool point
             self.q[:n] = plan_path(
                 self.q[:n],
                 start,

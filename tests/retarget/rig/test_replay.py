@@ -13,10 +13,10 @@ from retarget.bvh.parse import DEMO_CLIP
 from retarget.collision import CollisionModel
 from retarget.control.clock import VirtualClock
 from retarget.control.loop import LoopConfig
+from retarget.control.plan import tool_task
 from retarget.mapping import Targets, Workspace
 from retarget.mapping.config import MappingConfig
 from retarget.rig import RigReplay, RigTargets, load_rig, rig_targets
-from retarget.rig.replay import _tool_task
 from retarget.rig.telemetry import RigTelemetry
 from tests.helpers import SHARED_BVH, sampled_min_clearance
 
@@ -136,7 +136,8 @@ def test_the_plan_fits_each_arms_tool_point_in_its_own_rows_and_joints():
     replay = RigReplay(rig, targets, config=LoopConfig(max_ticks=30), clock=VirtualClock())
     q = np.random.default_rng(3).uniform(replay.plant.lower, replay.plant.upper, (7, len(replay.plant.lower)))
     aims = np.random.default_rng(4).normal(0.3, 0.1, (7, 3 * len(rig.arms)))
-    jacobians, residuals = _tool_task(replay, q, aims)
+    parts = [(a.arm.chain, part) for a, part in zip(rig.arms, replay.plant.slices, strict=True)]
+    jacobians, residuals = tool_task(parts, q, aims)
     assert jacobians.shape == (7, 3 * len(rig.arms), q.shape[1]) and residuals.shape == (7, 3 * len(rig.arms))
     for k, (a, part) in enumerate(zip(rig.arms, replay.plant.slices, strict=True)):
         rows = slice(3 * k, 3 * k + 3)
