@@ -10,8 +10,9 @@
   *before* the workspace clamp and the collision push-out, so every filtered target is still reachable.  By
   default (:data:`DEFAULT_CUTOFF`, ``"auto"``) the cutoff is chosen from the clip's own noise
   (:func:`~retarget.mapping.cutoff.auto_cutoff`: none for a clean capture, lower the noisier it is); a number
-  sets it; ``cutoff_hz = 0`` (``--no-filter``) turns it off.  A clip played causally (no look-ahead) reads
-  ``"auto"`` as :data:`CAUSAL_CUTOFF_HZ`.  A cutoff at or above the clip's Nyquist frequency
+  sets it; ``cutoff_hz = 0`` (``--no-filter``) turns it off.  The CLI's causal runs (``--loop``,
+  ``--no-look-ahead``) read ``"auto"`` as :data:`CAUSAL_CUTOFF_HZ` (``retarget.cli._rig_run.played_mapping``); a
+  library caller chooses for itself.  A cutoff at or above the clip's Nyquist frequency
   (half its frame rate) filters nothing.
 * :class:`OneEuro`: a causal filter for targets that arrive live (Casiez, Roussel and Vogel, "1 Euro filter:
   a simple speed-based low-pass filter for noisy input in interactive systems", CHI 2012): a one-pole low-pass
