@@ -134,22 +134,30 @@ def plot_telemetry(
     timing.set_xlim(float(np.nanmin(t)) - 0.01 * span, float(np.nanmax(t)) + 0.01 * span)
     timing.set_xlabel("run time (s)", fontsize=9)
     fig.suptitle(title or telemetry.path.name, fontsize=11, y=1 - 0.2 / fig.get_figheight())
-    _legend(fig, [*axes, ik, timing], bool(lead.any()))
+    rows = _legend(fig, [*axes, ik, timing], bool(lead.any()))
+    grid.update(top=1 - (0.8 + 0.15 * max(rows - 1, 0)) / fig.get_figheight())  # room for the legend's rows
     fig.savefig(path)
     plt.close(fig)
 
 
-def _legend(fig: Figure, axes: list[Axes], lead_in: bool) -> None:
-    """One legend for the figure, at the top: each label once, in the order the panels drew them."""
+def _legend(fig: Figure, axes: list[Axes], lead_in: bool) -> int:
+    """One legend for the figure, at the top: each label once, in the order the panels drew them, in as few rows as
+    fit the figure's width; returns the rows."""
     seen: dict[str, Artist] = {}
     for ax in axes:
         for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
             seen.setdefault(label, handle)
     if lead_in:
         seen["lead-in (to the first pose)"] = Patch(color=LEAD, alpha=0.4, lw=0)
-    ncol = len(seen) if len(seen) <= 8 else math.ceil(len(seen) / 2)
-    fig.legend(list(seen.values()), list(seen), loc="upper center", ncol=ncol, fontsize=8, frameon=False,
-               bbox_to_anchor=(0.5, 1 - 0.35 / fig.get_figheight()))  # fmt: skip
+    renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]  # (Agg's canvas has one)
+    top = (0.5, 1 - 0.35 / fig.get_figheight())
+    for rows in range(1, len(seen) + 1):  # as few rows as fit the figure's width (a rig's labels are longer)
+        legend = fig.legend(list(seen.values()), list(seen), loc="upper center", ncol=math.ceil(len(seen) / rows),
+                            fontsize=8, frameon=False, bbox_to_anchor=top)  # fmt: skip
+        if legend.get_window_extent(renderer).width <= 0.98 * fig.bbox.width:
+            return rows
+        legend.remove()
+    return len(seen)
 
 
 def _joint(ax: Axes, t: np.ndarray, tel: Telemetry, name: str, lo_hi: tuple[float, float] | None) -> None:

@@ -169,3 +169,22 @@ def test_plot_of_one_arms_file_refuses_a_rig_and_draws_another_arms_file_without
     assert main(["plot", str(koch), "-o", str(tmp_path / "koch.png")]) == 0, capsys.readouterr().err
     assert main(["plot", str(koch), "--arm", "wx250s", "-o", str(tmp_path / "koch.png")]) == 2
     assert "Expected the joints shoulder_pan" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("labels", "rows"), [(4, 1), (8, 2), (16, 4)], ids=["4-labels", "8-labels", "16-labels"])
+def test_the_legend_wraps_into_as_few_rows_as_fit_the_figure(labels: int, rows: int) -> None:
+    """The figure's legend takes one row while it fits the width, more when its labels are many or long (a rig's
+    'right tracking error'), and never runs off the figure's edges."""
+    import matplotlib.pyplot as plt
+
+    from retarget.view.plot import _legend
+
+    fig = plt.figure(figsize=(10, 6), dpi=100)
+    ax = fig.add_subplot()
+    for k in range(labels):
+        ax.plot([0, 1], [k, k], label=f"arm {k} tracking error")
+    assert _legend(fig, [ax], lead_in=False) == rows
+    (legend,) = fig.legends
+    extent = legend.get_window_extent(fig.canvas.get_renderer())  # type: ignore[attr-defined]
+    assert 0 <= extent.x0 and extent.x1 <= fig.bbox.width
+    plt.close(fig)
