@@ -60,6 +60,7 @@ import numpy.typing as npt
 
 from retarget.arm.kinematics import Chain
 from retarget.control.fit import Costs, check_task, fit_joints, fit_task, task_of
+from retarget.control.polish import Polish
 from retarget.control.profile import stop_speed
 from retarget.ik.bound import State, shared_bound
 from retarget.ik.result import IKResult
@@ -78,12 +79,14 @@ EASY_SPEED = 0.85  #: the fraction of each joint's velocity limit above which sp
 #: 1e-3: 185, 1.99; 3e-3: 165, 2.21.  motion_dance right 0: 1643, 9.4; 3e-4: 518, 9.3; 3e-3: 360, 9.6.  (The fit per
 #: joint with the fixed 6 Hz filter, before: basket 169, 2.8; dance 375, 13.5.  TODAY, unlimited: 4427 and 4339.)
 JERK_COST = 3e-4
-#: the look-ahead IK pass's tolerance, a share of the solver's own (``CCDSolver.tolerance``, 1 mm: the causal
-#: loop's).  The early-out leaves a tick anywhere within the tolerance (a DLS step aims at a quarter of it), and the
-#: plan follows those solutions where the limits allow, so at 1 mm the error saws between ~0 and 0.25 mm from tick
-#: to tick and the joints jerk with it.  Commanded jerk RMS (rad/s^3, wx250s), share 1 / 0.5 / 0.3: demo clip right
-#: 439 / 288 / 226, left (a hand that hardly moves) 1310 / 185 / 23; motion_walk right 227 / 165 / 157;
-#: motion_dance right 443 / 394 / 387 (0.1: no further).  The cost, a few more sweeps: export ~5 % slower
+#: the look-ahead IK pass's tolerance with an orientation target, a share of the solver's own
+#: (``CCDSolver.tolerance``, 1 mm: the causal loop's).  The early-out leaves a tick anywhere within the tolerance (a
+#: DLS step aims at a quarter of it), and the plan follows those solutions where the limits allow, so at 1 mm the
+#: error saws between ~0 and 0.25 mm from tick to tick and the joints jerk with it.  Commanded jerk RMS (rad/s^3,
+#: wx250s), share 1 / 0.5 / 0.3: demo clip right 439 / 288 / 226, left (a hand that hardly moves) 1310 / 185 / 23;
+#: motion_walk right 227 / 165 / 157; motion_dance right 443 / 394 / 387 (0.1: no further).  A position target is
+#: solved to the full tolerance and then polished, every tick at once (:mod:`~retarget.control.polish`: jerk 222
+#: and 24 on the demo clip, the look-ahead IK pass ~30 % quicker: motion_dance left 125 -> 86 ms)
 PLAN_TOLERANCE = 0.3
 
 
@@ -318,17 +321,25 @@ def solve_and_plan(
     solutions; an orientation target keeps the joints' fit, which holds the whole pose).  With a collision-aware
     solver (its ``collision`` model) each planned move, from ``q_start`` then tick to tick, is bounded from the notes
     its IK pass made (:meth:`~retarget.ik.bound.ClearanceBound.prove`): the loop's goal check takes a move's bound
-    when it keeps the clearance and checks the move itself otherwise."""
+    when it keeps the clearance and checks the move itself otherwise.  Position only, with a
+    :class:`~retarget.ik.CCDSolver`-like solver, the IK pass solves to the solver's own tolerance and every safe
+    tick then takes one more DLS step, all at once (:class:`~retarget.control.polish.Polish`); an orientation target
+    is solved to :data:`PLAN_TOLERANCE` of it."""
     t0 = time.perf_counter()
     model = getattr(solver, "collision", None)  # (a CCDSolver's collision model; None: none)
     bound = None if model is None else shared_bound(model)
     notes = None if bound is None else bound.record()
     try:
-        results, index = _solve(solver, positions, rotations, q_start, notes, max_step)
+        polish = None if chain is None or rotations is not None else Polish.of(solver)
+        share = 1.0 if polish is not None else PLAN_TOLERANCE
+        results, index = _solve(solver, positions, rotations, q_start, notes, max_step, share)
         qs = np.array([r.q for r in results], dtype=np.float64).reshape(len(results), len(q_start))
         jacobians = residuals = None
         if chain is not None and rotations is None:  # position only: plan to the tool point
             jacobians, residuals = tool_task([(chain, slice(None))], qs, positions)
+            if polish is not None:
+                ok = polish.safe(results, positions)
+                qs, residuals = polish.step(qs, jacobians, residuals, ok, lower, upper)
         planned = plan_path(qs, q_start, lower=lower, upper=upper, max_step=max_step, max_accel=max_accel,
                             jerk_cost=jerk_cost, jacobians=jacobians, residuals=residuals)  # fmt: skip
     except BaseException:
@@ -376,6 +387,7 @@ def _solve(
     q_start: Array,
     notes: list[State] | None,
     max_step: Array | None = None,
+    share: float = PLAN_TOLERANCE,
 ) -> tuple[tuple[IKResult, ...], list[int]]:
     """:func:`solve_path`, and per tick the index in ``notes`` (a list the collision bound appends its notes to,
     :meth:`~retarget.ik.bound.ClearanceBound.record`; None: no indices) of the last note after its solve.
@@ -389,7 +401,7 @@ def _solve(
     solve, q = solver.solve, np.asarray(q_start, dtype=np.float64)
     own = getattr(solver, "tolerance", None)
     if own is not None:
-        solve = partial(solver.solve, tolerance=PLAN_TOLERANCE * own)  # type: ignore[call-arg]
+        solve = partial(solver.solve, tolerance=share * own)  # type: ignore[call-arg]
     results = []
     index: list[int] = []
     for i in range(len(positions)):
