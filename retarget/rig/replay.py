@@ -35,6 +35,7 @@ from retarget.control.bus import Bus
 from retarget.control.clock import Clock, MonotonicClock
 from retarget.control.loop import LoopConfig, TickRecord, run_ticks
 from retarget.control.plan import plan_path, tool_task
+from retarget.control.polish import Polish
 from retarget.control.replay import ClipSlots, ControlLoop, plan_lead_in
 from retarget.control.source import JointGoal, TickGoal
 from retarget.control.stats import TickStats
@@ -79,7 +80,9 @@ class ArmPath:
     @classmethod
     def solve(cls, loop: ControlLoop) -> ArmPath:
         """IK for every slot of ``loop``'s pass, warm-started from the previous solution (the first from
-        :meth:`~retarget.control.replay.ControlLoop.initial_pose`), each solve's notes recorded."""
+        :meth:`~retarget.control.replay.ControlLoop.initial_pose`), each solve's notes recorded, then polished
+        (:class:`~retarget.control.polish.Polish`: one batched DLS step on every safe slot; ``error`` stays the
+        solver's)."""
         positions, _, _ = loop.sample(0, loop.n_slots)
         q = loop.initial_pose()
         model = loop.config.collision
@@ -96,6 +99,11 @@ class ArmPath:
             if bound is not None:
                 bound.record(False)
         out = np.array([r.q for r in results], dtype=np.float64).reshape(len(results), loop.arm.n_joints)
+        polish = Polish.of(loop.solver)
+        if polish is not None and len(out):  # the early-out's sawtooth taken out, every slot at once
+            arm = loop.arm
+            jacobians, residuals = tool_task([(arm.chain, slice(None))], out, positions)
+            out, _ = polish.step(out, jacobians, residuals, polish.safe(results, positions), arm.lower, arm.upper)
         error = np.array([r.error for r in results], dtype=np.float64)
         sweeps = np.array([r.iterations for r in results], dtype=np.int64)
         converged = np.array([r.converged for r in results], dtype=bool)

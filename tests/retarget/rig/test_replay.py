@@ -147,3 +147,21 @@ def test_the_plan_fits_each_arms_tool_point_in_its_own_rows_and_joints():
         others[part] = False
         assert not jacobians[:, rows][:, :, others].any()
         np.testing.assert_allclose(residuals[:, rows], tool - aims[:, rows])
+
+
+def test_each_arms_ik_path_is_polished_so_its_joints_do_not_saw():
+    """Each arm's IK pass (retarget.rig.replay.ArmPath.solve) takes one batched DLS step after its solves
+    (retarget.control.polish): its tool points sit within microns of their targets instead of anywhere within the
+    solver's 1 mm (the early-out's tick-to-tick sawtooth).  Measured on the demo clip, wx250s-pair: 0.2 mm p95
+    before, 16 um now (the right arm; the left 1 um); commanded jerk RMS 815 rad/s^3 before, 229 now (aloha: 604,
+    195)."""
+    rig = load_rig("wx250s-pair")
+    replay, summary, records = dry_run(rig, rig_targets(retarget.load_bvh(DEMO_CLIP), rig))
+    for a in rig.arms:
+        path = replay.paths[a.name]
+        error = np.linalg.norm(a.arm.chain.tool_points(path.q) - path.targets, axis=1)
+        assert float(np.percentile(error, 95)) < 0.05e-3, a.name
+        assert float(path.error.max()) <= 1e-3  # the solver's own figures are kept
+    q = np.array([r.q_cmd for r in records if not r.lead_in])
+    jerk = np.diff(q, 3, axis=0) * replay.config.rate**3
+    assert float(np.sqrt(np.mean(jerk**2))) < 400.0
