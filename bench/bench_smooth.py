@@ -32,7 +32,12 @@ Per clip, arm and side, today | now:
 - ``RTF``: the offline real-time factor of the run (clip seconds per wall second, the best of ``--runs`` runs, each
   a fresh loop as export builds it; target >= 100), the look-ahead plan's IK and passes included (one run per row
   read 72-77x on rows that read 107-132x a minute earlier on this shared 2-core VM);
-- ``met``: each target met (``+``) or missed (``-``), in the order over, cap, redund, p95, RTF.
+- ``met``: each target met (``+``) or missed (``-``), in the order over, cap, redund, p95, RTF;
+- ``floor20``: the p95, mm, of the unfiltered target's own content above 20 Hz (:func:`floor_p95`): about what any
+  commanded tool path with nothing above 20 Hz misses the target by, whatever its limits.  A command that follows
+  the target closer than this follows it at 20-50 Hz, where the arm's servos do not (their own profile, and the
+  acceleration limit: 1 mm at 30 Hz is 36 m/s^2 at the tool).  motion_basket's hands read 1.08-1.10 mm here: TODAY's
+  1.0 mm p95 on basket right is within 0.1 mm of this floor, so no path smooth to 20 Hz can match it.
 """
 
 from __future__ import annotations
@@ -121,6 +126,21 @@ def figures(
     }
 
 
+FLOOR_HZ = 20.0  #: the band a smooth command keeps (the ``floor`` column)
+
+
+def floor_p95(goal: np.ndarray, rate: float, hz: float = FLOOR_HZ) -> float:
+    """The p95 distance, mm, of the target path ``goal`` ``(n, 3)`` m sampled at ``rate`` Hz from its own content
+    below ``hz`` (an ideal low-pass: the path mirrored, its FFT cut): what any commanded tool path with nothing above
+    ``hz`` misses the target by, about (the cut is the least-squares best such path, so a p95 of another one may be
+    a little lower)."""
+    n = len(goal)
+    spectrum = np.fft.rfft(np.concatenate([goal, goal[::-1]]), axis=0)
+    spectrum[np.fft.rfftfreq(2 * n, 1.0 / rate) > hz] = 0.0
+    low = np.fft.irfft(spectrum, n=2 * n, axis=0)[:n]
+    return float(np.percentile(1000 * np.linalg.norm(goal - low, axis=1), 95))
+
+
 def measure(loop: ControlLoop, arm: Arm, clean: Targets) -> dict[str, float]:
     """Run ``loop`` offline from its first pose (as export does) and measure it against ``arm``'s limits."""
     records: list[TickRecord] = []
@@ -131,7 +151,8 @@ def measure(loop: ControlLoop, arm: Arm, clean: Targets) -> dict[str, float]:
     wall = time.perf_counter() - t0
     q = np.array([r.q_cmd for r in records])
     blocked = np.array([False, *(r.blocked for r in records)])
-    f = figures(q, q0, np.array([r.clip_time for r in records]), arm, clean, loop.config.rate)
+    times = np.array([r.clip_time for r in records])
+    f = figures(q, q0, times, arm, clean, loop.config.rate)
     near_block = blocked[1:] | blocked[:-1]
     over = f.pop("over_flags")
     accel = f.pop("abs_accel")
@@ -141,6 +162,7 @@ def measure(loop: ControlLoop, arm: Arm, clean: Targets) -> dict[str, float]:
         "over_blocked": int(np.sum(over & near_block)),
         "peak": float(accel[~near_block].max()),  # the collision check's instant stops apart
         "rtf": summary.duration_s / wall,
+        "floor": floor_p95(clean.sample(times)[0], loop.config.rate),
     }
 
 
@@ -199,7 +221,7 @@ def main() -> int:
     if args.clips:
         clips = [c for c in clips if c.stem in args.clips]
     print(f"{'clip':18s} {'arm':6s} {'side':5s} | TODAY: peak rad/s2, cap, p95 mm | "
-          "now: over (blocked), peak rad/s2, cap, redund rad, p95 mm, RTF | met")  # fmt: skip
+          f"now: over (blocked), peak rad/s2, cap, redund rad, p95 mm, RTF | met | floor{FLOOR_HZ:.0f} mm")  # fmt: skip
     if clips:  # one run first, unprinted: the first row's RTF would include the process's warm-up (94x against 123x)
         first = retarget.load_bvh(clips[0])
         arm0 = retarget.load_arm(args.arms[0])
@@ -223,7 +245,7 @@ def main() -> int:
                 print(
                     f"{clip.stem:18s} {arm_name:6s} {side:5s} | {b[0]:6.1f} {b[1]:5d} {b[2]:6.1f} | "
                     f"{a['over']:4d} ({a['over_blocked']:3d}) {a['peak']:6.1f} {a['cap']:5d} {a['redund']:6.2f} "
-                    f"{a['p95']:6.1f} {a['rtf']:5.0f}x | {targets_met(clip.stem, side, b, a)}",
+                    f"{a['p95']:6.1f} {a['rtf']:5.0f}x | {targets_met(clip.stem, side, b, a)} | {a['floor']:5.2f}",
                     flush=True,
                 )
     return 0
