@@ -387,11 +387,31 @@ class CollisionModel(TargetPoints):
         out: np.ndarray = self._one.bounds(one, float(reach))[self._one.perm]
         return out
 
-    def _distances(self, Q: np.ndarray) -> np.ndarray:
+    def world_distances(self, q: np.ndarray | Sequence[float]) -> np.ndarray:
+        """Signed clearance of every pair against the world (the table, the keep-out zones), metres: ``q``
+        ``(n_poses, n_joints)`` radians -> ``(n_poses, n_world_pairs)``, exactly as :meth:`distances` measures those
+        pairs (a fraction of its work: the arm's pairs with itself are left out).
+
+        >>> import retarget
+        >>> model = CollisionModel.for_arm(retarget.load_arm("wx250s"))
+        >>> d = model.world_distances(np.stack([model.arm.home, model.arm.rest]))
+        >>> d.shape[0], bool(d.min() >= model.clearance)
+        (2, True)
+        """
+        Q = self._poses(q)
+        rots, origins, a, b = self._ends(Q)
+        parts = self._world_distances(a, b, rots, origins)
+        return np.concatenate(parts, axis=1) if parts else np.zeros((len(Q), 0))
+
+    def _ends(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`_frames` of poses ``Q`` ``(N, n)``, and the capsules' end points ``a``, ``b`` ``(N, n_caps, 3)``."""
         rots, origins = self._frames(Q)
         f = self._cap_frame
         ends = np.einsum("nckl,cel->ncek", rots[:, f], self._cap_local) + origins[:, f][:, :, None, :]
-        a, b = ends[:, :, 0], ends[:, :, 1]  # (N, n_caps, 3)
+        return rots, origins, ends[:, :, 0], ends[:, :, 1]
+
+    def _distances(self, Q: np.ndarray) -> np.ndarray:
+        rots, origins, a, b = self._ends(Q)  # a, b: (N, n_caps, 3)
         i, j = self._cc[:, 0], self._cc[:, 1]
         parts = [segment_segment(a[:, i], b[:, i], a[:, j], b[:, j]) - self._cc_r]
         if len(self._cb):

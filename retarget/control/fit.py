@@ -23,7 +23,17 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["ACCEL_SHARE", "Costs", "Task", "check_task", "fit_joints", "fit_task", "task_of"]
+__all__ = [
+    "ACCEL_SHARE",
+    "Costs",
+    "Halfspaces",
+    "Task",
+    "check_task",
+    "fit_joints",
+    "fit_task",
+    "joint_task",
+    "task_of",
+]
 
 Array = npt.NDArray[np.float64]
 
@@ -95,6 +105,25 @@ class Task:
     b: Array
 
 
+@dataclass(frozen=True)
+class Halfspaces:
+    """Linear constraints on single ticks of a path: ``normals[i] . q[ticks[i]] >= offsets[i]``, ``ticks``
+    ``(c,)`` (distinct), ``normals`` ``(c, k)`` over the path's ``k`` joints, ``offsets`` ``(c,)`` (a clearance
+    linearised at a planned pose: :mod:`~retarget.control.keepclear`)."""
+
+    ticks: npt.NDArray[np.intp]
+    normals: Array
+    offsets: Array
+
+    def over(self, joints: list[int], goals: Array) -> Halfspaces:
+        """The same constraints over ``joints`` alone, the other joints held at ``goals`` ``(n, n_joints)`` (their
+        part moved into the offsets)."""
+        others = np.ones(self.normals.shape[1], dtype=bool)
+        others[joints] = False
+        held = (self.normals[:, others] * goals[self.ticks][:, others]).sum(axis=1)
+        return Halfspaces(self.ticks, self.normals[:, joints], self.offsets - held)
+
+
 #: the task fit's joint-space term, per rad^2 against the task error per (lever x rad)^2: a joint the task does not
 #: need (a direction the Jacobian does not see) still stays near its goal
 _TASK_REG = 0.01
@@ -139,7 +168,23 @@ def task_of(goals: Array, jacobians: Array, r: Array, hard: list[int]) -> Task |
     return Task(joints, A, np.einsum("tdi,td->it", J, r) / lever2)
 
 
-def fit_task(goal: Array, q0: Array, vmax: Array, amax: Array, iterations: int, costs: Costs, task: Task) -> Array:
+def joint_task(joints: list[int], n: int) -> Task:
+    """The joints' own cost ``1/2 |q - g|^2`` over ``n`` ticks as a :class:`Task` (``A = I``, ``b = 0``): for
+    :func:`fit_task` to meet :class:`Halfspaces` where no task point moves with the joints."""
+    k = len(joints)
+    return Task(joints, np.repeat(np.eye(k)[:, :, None], n, axis=2), np.zeros((k, n)))
+
+
+def fit_task(
+    goal: Array,
+    q0: Array,
+    vmax: Array,
+    amax: Array,
+    iterations: int,
+    costs: Costs,
+    task: Task,
+    halfspaces: Halfspaces | None = None,
+) -> Array:
     """:func:`fit_joints` with the task's cost (:class:`Task`) in place of ``1/2 |q - g|^2``: ADMM with three
     blocks, the task term (a ``k x k`` solve per tick, inverted once: :func:`_task_prox`), the speeds and the changes
     of speed, over-relaxed (:data:`_TASK_RELAX`, Boyd et al. sec. 3.4.3); the jerk cost is a term of the joints' own
@@ -149,7 +194,11 @@ def fit_task(goal: Array, q0: Array, vmax: Array, amax: Array, iterations: int, 
     The path is kept unmirrored (``h`` slots: padding, goals, padding), its steps ``D q`` ``(k, h - 1)`` and changes
     of step ``-L q`` ``(k, h)`` (``L = D'D``, the path's Laplacian): the mirrored circle's values, each once, so every
     sweep's work is half of :func:`fit_joints`'s, and the joints' own update solves in the cosine basis (where
-    ``L`` is diagonal, :func:`_cosine_solve`)."""
+    ``L`` is diagonal, :func:`_cosine_solve`).
+
+    ``halfspaces`` (over the task's joints) join the task term's prox: a tick's prox that breaks its constraint is
+    moved onto it along ``(A + rho0)^-1 normal`` (the nearest point of the halfspace in the prox's own metric: the
+    exact prox of the task term with the constraint), a few products on those ticks alone."""
     k, n = goal.shape
     h = _fft_size(n + 2 * _PAD)
     x = _padded(goal, q0, h)
@@ -161,6 +210,7 @@ def fit_task(goal: Array, q0: Array, vmax: Array, amax: Array, iterations: int, 
     rho3 = (costs.jerk * weight / amax[:, None] ** 2)[:, :, None]  # the jerk cost: a term of the update itself
     inverse = _inverse(rho0, rho1, rho2, rho3, eigen)
     solve, shift = _task_prox(task, rho0, h - _PAD - n)
+    onto = None if halfspaces is None or not len(halfspaces.ticks) else _onto(halfspaces, solve, rho0)
     aims = x[:, _PAD:]  # (k, h - PAD): the goals, then the last one
     easy, vcap, acap = costs.easy_speed * vmax[:, None], vmax[:, None], ACCEL_SHARE * amax[:, None]
     keep = r_speed / (r_speed + costs.speed)
@@ -180,6 +230,10 @@ def fit_task(goal: Array, q0: Array, vmax: Array, amax: Array, iterations: int, 
         v = z0 + al * (q - z0) + u0
         z0 = x + pad_keep * (v - x)
         z0[:, real] = aims + shift + (solve * (v[:, real] - aims)[None]).sum(axis=1)
+        if onto is not None:
+            cols, normals, offsets, step = onto
+            short = offsets - (normals * z0[:, cols]).sum(axis=0)
+            z0[:, cols] += step * np.maximum(short, 0.0)
         u0 = v - z0
         u1 += z1 + al * (d1 - z1)
         z1 = _speed_prox(u1, easy, keep, vcap)
@@ -205,6 +259,16 @@ def _task_prox(task: Task, rho0: Array, after: int) -> tuple[Array, Array]:
     inv = np.concatenate([inv, np.repeat(inv[:, :, -1:], after, axis=2)], axis=2)
     b = np.concatenate([task.b, np.repeat(task.b[:, -1:], after, axis=1)], axis=1)
     return inv * rho0[None, :, :], -(inv * b[None]).sum(axis=1)
+
+
+def _onto(halfspaces: Halfspaces, solve: Array, rho0: Array) -> tuple[npt.NDArray[np.intp], Array, Array, Array]:
+    """What the task prox needs to meet ``halfspaces``: their columns of the padded path, normals ``(k, c)`` and
+    offsets ``(c,)``, and the step ``(k, c)`` per unit of shortfall, ``(A + rho0)^-1 n / (n' (A + rho0)^-1 n)``
+    (``(A + rho0)^-1`` being ``solve`` over ``rho0``, :func:`_task_prox`)."""
+    ticks = halfspaces.ticks
+    normals = halfspaces.normals.T  # (k, c)
+    toward = np.einsum("ijc,jc->ic", solve[:, :, ticks] / rho0[None, :, :], normals)  # (A + rho0)^-1 n
+    return _PAD + ticks, normals, halfspaces.offsets, toward / (normals * toward).sum(axis=0)
 
 
 def _inverse(rho0: Array, rho1: Array, rho2: Array, rho3: Array, eigen: Array) -> Array:

@@ -29,6 +29,10 @@ all joints at once, on the goal path ``g`` ``(n, n_joints)``:
    joints' fit -> the task's (targets unfiltered, bench_smooth.py): motion_dance right 13.3 -> 9.3 mm, left
    29.9 -> 23.2; motion_walk left 19.7 -> 10.2; unity_walk_random right 12.5 -> 5.3; motion_basket right 2.6 ->
    1.8;
+   With a collision-aware IK pass, :func:`solve_and_plan` keeps the fitted path clear of the world where it comes
+   near it (:mod:`~retarget.control.keepclear`: the clearance linearised at those planned poses, as ``halfspaces``
+   the fit meets, for a few rounds), and ticks whose IK stopped short of a collision have no task: their goal is
+   the IK's nearest clear pose;
 3. a last forward pass of the profile over that path from the start pose at rest: the plan's first step starts
    from rest at ``q_start``, and the result is exactly what the profile allows (ADMM's few sweeps leave the
    constraints nearly but not exactly met), so the loop's own limiter, fed the plan tick by tick, reproduces it.
@@ -59,10 +63,11 @@ import numpy as np
 import numpy.typing as npt
 
 from retarget.arm.kinematics import Chain
-from retarget.control.fit import Costs, check_task, fit_joints, fit_task, task_of
+from retarget.control.fit import Costs, Halfspaces, check_task, fit_joints, fit_task, joint_task, task_of
+from retarget.control.keepclear import MARGIN, keep_clear
 from retarget.control.polish import Polish
 from retarget.control.profile import stop_speed
-from retarget.ik.bound import State, shared_bound
+from retarget.ik.bound import ClearanceBound, ProvenPath, State, shared_bound
 from retarget.ik.result import IKResult
 
 __all__ = ["PathPlan", "plan_path", "solve_and_plan", "tool_task"]
@@ -104,6 +109,7 @@ def plan_path(
     jerk_cost: float = JERK_COST,
     jacobians: npt.ArrayLike | None = None,
     residuals: npt.ArrayLike | None = None,
+    halfspaces: Halfspaces | None = None,
 ) -> Array:
     """The joint path ``(n, n_joints)`` rad nearest ``goals`` ``(n, n_joints)`` rad that the limits allow, looking
     ahead (see the module docstring).
@@ -119,6 +125,9 @@ def plan_path(
     ``residuals`` ``(n, d)`` metres (the task point of each goal minus its target): the fit is then to the task, not
     the joints (:func:`fit_task`): a joint that falls behind its goal is made up for by the others where
     they can, and every joint that moves and matters to the task is planned with the ones that must be.
+    ``halfspaces`` (:class:`~retarget.control.fit.Halfspaces` over all the joints, with ``jacobians`` only): linear
+    constraints the fit meets on single ticks (a clearance kept, :mod:`~retarget.control.keepclear`); like the limits
+    to ADMM's few sweeps, nearly.
 
     A step of 1 rad in one joint, at most 0.1 rad per slot and 0.02 rad per slot^2: the plan starts before the
     step (at slot 20) and ends after it, symmetrically (the causal limiter would only start at the step); like any
@@ -149,6 +158,8 @@ def plan_path(
         raise ValueError(f"Expected jerk_cost >= 0, got {jerk_cost}")
     costs = Costs(speed_cost, easy_speed, jerk_cost)
     arrays = check_task(jacobians, residuals, n, m)
+    if halfspaces is not None and arrays is None:
+        raise ValueError("Expected jacobians with halfspaces, got halfspaces alone")
     out = g.copy()
     if n == 0:
         return out
@@ -157,11 +168,14 @@ def plan_path(
     if not hard:
         return out
     task = None if arrays is None else task_of(g, *arrays, hard)
+    if task is None and halfspaces is not None:  # (every tick's Jacobian zero: held at the IK's clear poses)
+        task = joint_task(hard, n)
     if task is not None:
         hard = task.joints
     aims = g[:, hard].T
     if iterations > 0 and task is not None:
-        aims = fit_task(aims, q0[hard], vmax[hard], amax[hard], iterations, costs, task)
+        kept = None if halfspaces is None else halfspaces.over(hard, g)
+        aims = fit_task(aims, q0[hard], vmax[hard], amax[hard], iterations, costs, task, kept)
     elif iterations > 0:
         aims = fit_joints(aims, q0[hard], vmax[hard], amax[hard], iterations, costs)
     for row, j in zip(aims.tolist(), hard, strict=True):
@@ -340,17 +354,38 @@ def solve_and_plan(
             if polish is not None:
                 ok = polish.safe(results, positions)
                 qs, residuals = polish.step(qs, jacobians, residuals, ok, lower, upper)
-        planned = plan_path(qs, q_start, lower=lower, upper=upper, max_step=max_step, max_accel=max_accel,
-                            jerk_cost=jerk_cost, jacobians=jacobians, residuals=residuals)  # fmt: skip
+            blocked = np.array([r.blocked for r in results], dtype=bool)
+            jacobians[blocked], residuals[blocked] = 0.0, 0.0  # the goal there: the IK's nearest clear pose
+
+        def plan(halfspaces: Halfspaces | None) -> Array:
+            return plan_path(qs, q_start, lower=lower, upper=upper, max_step=max_step, max_accel=max_accel,
+                             jerk_cost=jerk_cost, jacobians=jacobians, residuals=residuals,
+                             halfspaces=halfspaces)  # fmt: skip
+
+        if model is None or bound is None or notes is None or jacobians is None:
+            planned = plan(None)
+        else:  # kept clear of the world where the notes the IK pass made do not bound a planned pose clear
+            lows_of = partial(bound.pose_lows, notes=notes, index=index, reach=MARGIN)
+            planned = keep_clear(model, plan, lows_of, qs)
     except BaseException:
         if bound is not None:
             bound.record(False)
         raise
-    if bound is not None and notes is not None:  # the plan's moves bounded from the notes the IK pass made
-        starts = np.vstack([np.asarray(q_start, dtype=np.float64)[None], planned[:-1]])
-        bound.prove(starts, planned, notes, index)
+    if bound is not None and notes is not None:
+        _prove(bound, q_start, planned, notes, index)
     seconds = time.perf_counter() - t0
     return PathPlan(planned, results, np.asarray(positions), tuple(clamped.tolist()), seconds)
+
+
+def _prove(bound: ClearanceBound, q_start: Array, path: Array, notes: list[State], index: list[int]) -> ProvenPath:
+    """The bounds of ``path``'s moves (``(n, n_joints)`` rad, from ``q_start`` then tick to tick) from the IK pass's
+    ``notes`` (:meth:`~retarget.ik.bound.ClearanceBound.prove`), kept for the loop's goal check; the ones there when
+    they are this path's already."""
+    starts = np.vstack([np.asarray(q_start, dtype=np.float64)[None], path[:-1]])
+    proven = bound.proven
+    if proven is not None and proven.matches(starts, path):
+        return proven
+    return bound.prove(starts, path, notes, index)
 
 
 def tool_task(parts: Sequence[tuple[Chain, slice]], q: Array, targets: Array) -> tuple[Array, Array]:

@@ -177,6 +177,23 @@ class ClearanceBound:
         self._log = None
         starts = np.asarray(starts, dtype=np.float64).reshape(-1, len(self._scale))
         ends = np.asarray(ends, dtype=np.float64).reshape(starts.shape)
+        self.proven = ProvenPath(starts, ends, self._lows(starts, ends, notes, index, 0.0), self._scale)
+        return self.proven
+
+    def pose_lows(
+        self, poses: np.ndarray, notes: Sequence[State], index: Sequence[int] | np.ndarray, reach: float = 0.0
+    ) -> np.ndarray:
+        """Lower bounds ``(n,)`` metres of the min clearance of each pose ``poses[i]`` ``(n, n_joints)`` rad, from
+        the notes as :meth:`prove` bounds a segment (each pose a segment of no length), the neighbours' notes tried
+        where a pose's own leaves it below the clearance plus ``reach`` metres.  Changes nothing."""
+        poses = np.asarray(poses, dtype=np.float64).reshape(-1, len(self._scale))
+        return self._lows(poses, poses, notes, index, reach)
+
+    def _lows(
+        self, starts: np.ndarray, ends: np.ndarray, notes: Sequence[State], index: Sequence[int] | np.ndarray,
+        reach: float
+    ) -> np.ndarray:  # fmt: skip
+        """:meth:`prove`'s bounds (the neighbours' notes tried below the clearance plus ``reach``)."""
         low = np.full(len(starts), -math.inf)
         if notes and len(starts):
             refs = np.array([s[0] for s in notes])
@@ -186,11 +203,10 @@ class ClearanceBound:
             for shift in (0, 1, -1):  # the neighbours only for the segments their own note leaves short
                 k = np.clip(index[todo] + shift, 0, len(notes) - 1)
                 low[todo] = np.maximum(low[todo], self._segments_low(starts[todo], ends[todo], refs[k], rows[k]))
-                todo = todo[low[todo] < self._clearance]
+                todo = todo[low[todo] < self._clearance + reach]
                 if not todo.size:
                     break
-        self.proven = ProvenPath(starts, ends, low, self._scale)
-        return self.proven
+        return low
 
     def _segments_low(self, starts: np.ndarray, ends: np.ndarray, refs: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """Per segment ``starts[i] -> ends[i]`` ``(m, n_joints)`` rad, the lower bound from the note of pose
