@@ -67,7 +67,7 @@ from retarget.control.fit import Costs, Halfspaces, check_task, fit_joints, fit_
 from retarget.control.keepclear import MARGIN, keep_clear
 from retarget.control.polish import Polish
 from retarget.control.profile import stop_speed
-from retarget.ik.bound import ClearanceBound, ProvenPath, State, shared_bound
+from retarget.ik.bound import State, shared_bound
 from retarget.ik.result import IKResult
 
 __all__ = ["PathPlan", "plan_path", "solve_and_plan", "tool_task"]
@@ -350,12 +350,7 @@ def solve_and_plan(
         qs = np.array([r.q for r in results], dtype=np.float64).reshape(len(results), len(q_start))
         jacobians = residuals = None
         if chain is not None and rotations is None:  # position only: plan to the tool point
-            jacobians, residuals = tool_task([(chain, slice(None))], qs, positions)
-            if polish is not None:
-                ok = polish.safe(results, positions)
-                qs, residuals = polish.step(qs, jacobians, residuals, ok, lower, upper)
-            blocked = np.array([r.blocked for r in results], dtype=bool)
-            jacobians[blocked], residuals[blocked] = 0.0, 0.0  # the goal there: the IK's nearest clear pose
+            qs, jacobians, residuals = _tool_goals(chain, polish, results, qs, positions, lower, upper)
 
         def plan(halfspaces: Halfspaces | None) -> Array:
             return plan_path(qs, q_start, lower=lower, upper=upper, max_step=max_step, max_accel=max_accel,
@@ -371,21 +366,31 @@ def solve_and_plan(
         if bound is not None:
             bound.record(False)
         raise
-    if bound is not None and notes is not None:
-        _prove(bound, q_start, planned, notes, index)
+    if bound is not None and notes is not None:  # the plan's moves bounded from the notes the IK pass made
+        starts = np.vstack([np.asarray(q_start, dtype=np.float64)[None], planned[:-1]])
+        bound.prove(starts, planned, notes, index)
     seconds = time.perf_counter() - t0
     return PathPlan(planned, results, np.asarray(positions), tuple(clamped.tolist()), seconds)
 
 
-def _prove(bound: ClearanceBound, q_start: Array, path: Array, notes: list[State], index: list[int]) -> ProvenPath:
-    """The bounds of ``path``'s moves (``(n, n_joints)`` rad, from ``q_start`` then tick to tick) from the IK pass's
-    ``notes`` (:meth:`~retarget.ik.bound.ClearanceBound.prove`), kept for the loop's goal check; the ones there when
-    they are this path's already."""
-    starts = np.vstack([np.asarray(q_start, dtype=np.float64)[None], path[:-1]])
-    proven = bound.proven
-    if proven is not None and proven.matches(starts, path):
-        return proven
-    return bound.prove(starts, path, notes, index)
+def _tool_goals(
+    chain: Chain,
+    polish: Polish | None,
+    results: Sequence[IKResult],
+    qs: Array,
+    positions: Array,
+    lower: Array,
+    upper: Array,
+) -> tuple[Array, Array, Array]:
+    """The IK poses ``qs`` ``(n, n_joints)`` rad polished (when ``polish``), their tool point's Jacobians
+    ``(n, 3, n_joints)`` and residuals ``(n, 3)`` m (:func:`tool_task`), zero on the ticks whose IK stopped short of
+    a collision (``results``' ``blocked``): the goal there is the IK's nearest clear pose, not the target."""
+    jacobians, residuals = tool_task([(chain, slice(None))], qs, positions)
+    if polish is not None:
+        qs, residuals = polish.step(qs, jacobians, residuals, polish.safe(results, positions), lower, upper)
+    blocked = np.array([r.blocked for r in results], dtype=bool)
+    jacobians[blocked], residuals[blocked] = 0.0, 0.0
+    return qs, jacobians, residuals
 
 
 def tool_task(parts: Sequence[tuple[Chain, slice]], q: Array, targets: Array) -> tuple[Array, Array]:
