@@ -33,6 +33,8 @@ import numpy.typing as npt
 
 from retarget.control.bus import Bus
 from retarget.control.clock import Clock, MonotonicClock
+from retarget.control.fit import Halfspaces
+from retarget.control.keepclear import keep_clear
 from retarget.control.loop import LoopConfig, TickRecord, run_ticks
 from retarget.control.plan import plan_path, tool_task
 from retarget.control.polish import Polish
@@ -45,6 +47,7 @@ from retarget.errors import BusError
 from retarget.ik.bound import State, shared_bound
 from retarget.rig.check import RigGoalCheck, RigRoutes
 from retarget.rig.clearance import RigClearance
+from retarget.rig.keepclear import RigWorld
 from retarget.rig.mapping import RigTargets
 from retarget.rig.plant import RigPlant
 from retarget.rig.proof import RigProof
@@ -272,17 +275,18 @@ class _RigSource(ClipSlots):
             start = self.q[0] if self.with_lead_in else np.clip(q_start, plant.lower, plant.upper)
             parts = [(a.arm.chain, part) for a, part in zip(replay.rig.arms, plant.slices, strict=True)]
             jacobians, residuals = tool_task(parts, self.q[:n], self.targets[:n])  # each arm's own tool point
-            self.q[:n] = plan_path(
-                self.q[:n],
-                start,
-                lower=plant.lower,
-                upper=plant.upper,
-                max_step=plant.max_velocity * cfg.velocity_scale / cfg.rate,
-                max_accel=plant.max_acceleration / cfg.rate**2,
-                jerk_cost=cfg.jerk_cost,
-                jacobians=jacobians,
-                residuals=residuals,
-            )
+            for k, name in enumerate(replay.rig.names):  # an arm's IK stopped short of a collision: its clear pose
+                blocked = replay.paths[name].blocked[:n]
+                jacobians[blocked, 3 * k : 3 * k + 3], residuals[blocked, 3 * k : 3 * k + 3] = 0.0, 0.0
+            goals = self.q[:n].copy()
+
+            def plan(halfspaces: Halfspaces | None) -> Array:
+                return plan_path(goals, start, lower=plant.lower, upper=plant.upper,
+                                 max_step=plant.max_velocity * cfg.velocity_scale / cfg.rate,
+                                 max_accel=plant.max_acceleration / cfg.rate**2, jerk_cost=cfg.jerk_cost,
+                                 jacobians=jacobians, residuals=residuals, halfspaces=halfspaces)  # fmt: skip
+
+            self.q[:n] = plan(None) if replay.models is None else self._kept_clear(plan, goals)
             if replay.models is not None:
                 self._prove(np.vstack([start[None], self.q[:n]]))
         if not self.with_lead_in:
@@ -294,6 +298,16 @@ class _RigSource(ClipSlots):
         if cfg.max_ticks is not None and self.lead_in.n_slots > cfg.max_ticks:
             self.lead_in = self.lead_in.truncated(cfg.max_ticks)
         return -self.lead_in.n_slots
+
+    def _kept_clear(self, plan: Callable[[Halfspaces | None], Array], goals: Array) -> Array:
+        """``plan``'s path kept clear of every arm's world (:func:`~retarget.control.keepclear.keep_clear`, over
+        :class:`~retarget.rig.keepclear.RigWorld`), from the notes of the arms' IK passes."""
+        replay = self.replay
+        models = replay.models or {}
+        world = RigWorld(models, list(zip(replay.rig.names, replay.plant.slices, strict=True)))
+        notes = {name: path.notes for name, path in replay.paths.items()}
+        index = {name: path.index for name, path in replay.paths.items()}
+        return keep_clear(world, plan, lambda path: world.pose_lows(path, notes, index), goals)
 
     def _prove(self, path: Array) -> None:
         """Bound every planned move ``path[k] -> path[k + 1]`` ``(n + 1, plant n_joints)`` rad before the run
