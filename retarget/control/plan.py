@@ -125,9 +125,10 @@ def plan_path(
     ``residuals`` ``(n, d)`` metres (the task point of each goal minus its target): the fit is then to the task, not
     the joints (:func:`fit_task`): a joint that falls behind its goal is made up for by the others where
     they can, and every joint that moves and matters to the task is planned with the ones that must be.
-    ``halfspaces`` (:class:`~retarget.control.fit.Halfspaces` over all the joints, with ``jacobians`` only): linear
-    constraints the fit meets on single ticks (a clearance kept, :mod:`~retarget.control.keepclear`); like the limits
-    to ADMM's few sweeps, nearly.
+    ``halfspaces`` (:class:`~retarget.control.fit.Halfspaces` over all the joints): linear constraints the fit meets
+    on single ticks (a clearance kept, :mod:`~retarget.control.keepclear`); like the limits to ADMM's few sweeps,
+    nearly.  Without ``jacobians`` the fit is then the task fit's with the joints' own cost
+    (:func:`~retarget.control.fit.joint_task`).
 
     A step of 1 rad in one joint, at most 0.1 rad per slot and 0.02 rad per slot^2: the plan starts before the
     step (at slot 20) and ends after it, symmetrically (the causal limiter would only start at the step); like any
@@ -158,8 +159,6 @@ def plan_path(
         raise ValueError(f"Expected jerk_cost >= 0, got {jerk_cost}")
     costs = Costs(speed_cost, easy_speed, jerk_cost)
     arrays = check_task(jacobians, residuals, n, m)
-    if halfspaces is not None and arrays is None:
-        raise ValueError("Expected jacobians with halfspaces, got halfspaces alone")
     out = g.copy()
     if n == 0:
         return out
@@ -168,7 +167,7 @@ def plan_path(
     if not hard:
         return out
     task = None if arrays is None else task_of(g, *arrays, hard)
-    if task is None and halfspaces is not None:  # (every tick's Jacobian zero: held at the IK's clear poses)
+    if task is None and halfspaces is not None:  # no task, or every tick's Jacobian zero: the joints' own cost
         task = joint_task(hard, n)
     if task is not None:
         hard = task.joints
@@ -357,7 +356,7 @@ def solve_and_plan(
                              jerk_cost=jerk_cost, jacobians=jacobians, residuals=residuals,
                              halfspaces=halfspaces)  # fmt: skip
 
-        if model is None or bound is None or notes is None or jacobians is None:
+        if model is None or bound is None or notes is None:
             planned = plan(None)
         else:  # kept clear of the world where the notes the IK pass made do not bound a planned pose clear
             lows_of = partial(bound.pose_lows, notes=notes, index=index, reach=MARGIN)

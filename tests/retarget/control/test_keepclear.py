@@ -24,33 +24,29 @@ ARM = retarget.load_arm("wx250s")
 BALL = Sphere((0.28, -0.12, 0.40), 0.05)
 
 
-def _sine_plan(halfspaces: Halfspaces | None) -> np.ndarray:
-    """One joint (a task point 1 m out along it), still for 60 ticks, then asked through a sine that needs 1.1x its
-    acceleration limit."""
+def _sine_plan(halfspaces: Halfspaces | None, *, task: bool = True) -> np.ndarray:
+    """One joint (with ``task``: a task point 1 m out along it), still for 60 ticks, then asked through a sine that
+    needs 1.1x its acceleration limit."""
     t = np.arange(360)
     goals = np.where(t < 60, 0.0, 0.5 * np.sin(2 * np.pi * (t - 60) / 60))[:, None]
-    jacobians, residuals = np.ones((360, 1, 1)), np.zeros((360, 1))
+    jacobians, residuals = (np.ones((360, 1, 1)), np.zeros((360, 1))) if task else (None, None)
     return plan_path(goals, [0.0], lower=[-2.0], upper=[2.0], max_step=[0.05], max_accel=[0.005],
                      jacobians=jacobians, residuals=residuals, halfspaces=halfspaces)  # fmt: skip
 
 
+@pytest.mark.parametrize("task", [True, False], ids=["task", "joints"])
 @pytest.mark.parametrize("lift", [0.02, 0.05, 0.1], ids=["2cm", "5cm", "10cm"])
-def test_the_fit_meets_a_halfspace_on_the_ticks_it_holds(lift: float):
+def test_the_fit_meets_a_halfspace_on_the_ticks_it_holds(lift: float, task: bool):
     """A floor ``lift`` rad above the unconstrained plan's lowest point, on the ticks below it: the plan keeps to it
-    within the last pass's few milliradians (measured short by 1.6-1.9 mrad) and within its limits."""
-    free = _sine_plan(None)
+    within the last pass's few milliradians (measured short by 1.3-1.9 mrad) and within its limits; without a task
+    (an orientation target's plan) the joints' own cost takes the task's place."""
+    free = _sine_plan(None, task=task)
     floor = float(free.min()) + lift
     low = np.flatnonzero(free[:, 0] < floor)
-    kept = _sine_plan(Halfspaces(low, np.ones((len(low), 1)), np.full(len(low), floor)))
+    kept = _sine_plan(Halfspaces(low, np.ones((len(low), 1)), np.full(len(low), floor)), task=task)
     assert float(kept[low, 0].min()) > floor - 0.003
     v = np.diff(np.r_[[[0.0]], kept], axis=0)
     assert np.abs(v).max() <= 0.05 + 1e-12 and np.abs(np.diff(np.r_[[[0.0]], v], axis=0)).max() <= 0.005 + 1e-12
-
-
-def test_halfspaces_need_the_task():
-    with pytest.raises(ValueError, match="Expected jacobians with halfspaces"):
-        plan_path(np.zeros((5, 1)), [0.0], lower=[-1.0], upper=[1.0], max_step=[0.1], max_accel=[0.1],
-                  halfspaces=Halfspaces(np.array([2]), np.ones((1, 1)), np.zeros(1)))  # fmt: skip
 
 
 def test_a_halfspace_over_some_joints_moves_the_others_into_its_offset():
@@ -108,9 +104,10 @@ def test_world_distances_are_the_world_pairs_of_distances():
     np.testing.assert_allclose(model.world_distances(poses), model.distances(poses)[:, world], atol=1e-12)
 
 
-def _demo_with_ball() -> tuple[list[TickRecord], CollisionModel]:
+def _demo_with_ball(orientation_weight: float) -> tuple[list[TickRecord], CollisionModel]:
     model = CollisionModel.for_arm(ARM, world=World(keep_out=(BALL,)))
-    config = MappingConfig.from_table(ARM.mapping, overrides={"side": "right"})
+    overrides = {"side": "right", "orientation_weight": orientation_weight}
+    config = MappingConfig.from_table(ARM.mapping, overrides=overrides)
     targets = retarget_targets(retarget.load_bvh(retarget.DEMO_CLIP), ARM, config, collision=model)
     records: list[TickRecord] = []
     ControlLoop(ARM, targets, config=LoopConfig(collision=model), clock=VirtualClock(),
@@ -118,15 +115,19 @@ def _demo_with_ball() -> tuple[list[TickRecord], CollisionModel]:
     return records, model
 
 
-def test_a_ball_in_the_way_is_planned_around_without_a_blocked_goal():
-    """The demo clip with :data:`BALL` in the way: no goal blocked, no step above the acceleration limit, every goal
-    written clear (the brute-force check), and the arm at its target again by the clip's end (measured: 0 blocked,
-    peak 42 rad/s^2, 0.0 mm at the end)."""
-    records, model = _demo_with_ball()
-    assert sum(r.blocked for r in records) == 0
+@pytest.mark.parametrize("orientation_weight", [0.0, 0.5], ids=["position", "orientation"])
+def test_a_ball_in_the_way_is_planned_around_without_a_blocked_goal(orientation_weight: float):
+    """The demo clip with :data:`BALL` in the way: no goal blocked (with an orientation target at most a few), no step
+    above the acceleration limit but the goal check's stops, every goal written clear (the brute-force check), and
+    the arm at its target again by the clip's end.  Measured: 0 blocked and peak 42 rad/s^2 (before: 592 and 232),
+    0.0 mm at the end (before: 436); with orientation 3 blocked (before: 392)."""
+    records, model = _demo_with_ball(orientation_weight)
+    blocked = np.array([r.blocked for r in records])
+    assert blocked.sum() <= (5 if orientation_weight else 0)
     q = np.array([r.q_cmd for r in records])
     accel = np.diff(q, 2, axis=0) * LoopConfig().rate ** 2
-    assert np.all(np.abs(accel) <= ARM.max_acceleration * (1 + 1e-6))
+    stops = blocked[2:] | blocked[1:-1] | blocked[:-2]  # the goal check's instant stops and what follows them
+    assert np.all(np.abs(accel[~stops]) <= ARM.max_acceleration * (1 + 1e-6))
     assert np.all(brute_force_min_clearances(ARM, q[::5], world=model.world) >= model.clearance - 1e-9)
-    end = np.linalg.norm(ARM.fk(q[-1])[0][:3, 3] - records[-1].target)
-    assert end < 1e-3
+    if not orientation_weight:
+        assert np.linalg.norm(ARM.fk(q[-1])[0][:3, 3] - records[-1].target) < 1e-3
