@@ -104,17 +104,25 @@ def keep_clear(
 ) -> Array:
     """The path ``plan(halfspaces)`` gives (``(n, n_joints)`` rad), re-planned with the clearance linearised at the
     planned poses :func:`near_ticks` finds (``lows_of(path)``: each planned pose's lower bound, metres) until none
-    is left or after :data:`ROUNDS` re-plans; the constraints of every round are kept (a tick's latest replaces an
+    is left or after :data:`ROUNDS` re-plans, then the round's path with the fewest poses within the clearance (the
+    rounds need not improve on each other).  The constraints of every round are kept (a tick's latest replaces an
     earlier one, asking for what the earlier ones fell short by on top: the fit meets its constraints, and the
     profile's last pass, which makes the fit's path exactly feasible, may move a pose off them again)."""
     path = plan(None)
     kept: dict[int, tuple[Array, float]] = {}
     raised: dict[int, float] = {}  # per tick, what the rounds before fell short by: asked for again on top
-    for _ in range(ROUNDS):
+    best: tuple[tuple[int, int], Array] = ((len(goals) + 1, 0), path)  # (worse than any round)
+    for round_ in range(ROUNDS + 1):
         ticks = near_ticks(model, path, goals, lows_of(path))
         if not len(ticks):
             return path
-        new, short = linearised(model, path, ticks), _shortfalls(model, path, ticks)
+        short = _shortfalls(model, path, ticks)
+        score = (sum(s > 2.0 * MARGIN for s in short), len(ticks))  # (poses within the clearance, near it)
+        if score < best[0]:
+            best = (score, path)
+        if round_ == ROUNDS:
+            break
+        new = linearised(model, path, ticks)
         for t, normal, offset, s in zip(new.ticks.tolist(), new.normals, new.offsets.tolist(), short, strict=True):
             raised[t] = raised.get(t, 0.0) + s if t in kept else 0.0
             kept[t] = (normal, offset + raised[t])
@@ -122,4 +130,5 @@ def keep_clear(
         halfspaces = Halfspaces(order, np.array([kept[t][0] for t in order]), np.array([kept[t][1] for t in order]))
         log.info("look-ahead: %d planned poses within %.0f mm of the clearance, re-planned", len(ticks), MARGIN * 1e3)
         path = plan(halfspaces)
-    return path
+    log.info("look-ahead: %d planned poses left within the clearance (the goal check guards them)", best[0][0])
+    return best[1]
