@@ -51,18 +51,19 @@ class Model(Protocol):
     def world_distances(self, q: Array) -> Array: ...
 
 
-def near_ticks(model: Model, planned: Array, goals: Array, lows: npt.ArrayLike) -> npt.NDArray[np.intp]:
+def near_ticks(model: Model, planned: Array, goals: Array, lows: npt.ArrayLike) -> tuple[npt.NDArray[np.intp], Array]:
     """The ticks whose planned pose (``planned`` ``(n, n_joints)`` rad) the fit moved off its goal (``goals``, the
     IK's clear poses) and that come closer to the world than the clearance plus :data:`MARGIN`, measured (one
     batch) where the pose's lower bound ``lows`` ``(n,)`` m (:meth:`~retarget.ik.bound.ClearanceBound.pose_lows`)
-    does not rule it out."""
+    does not rule it out; and those poses' clearances to the world, metres."""
     limit = model.clearance + MARGIN
     unproven = np.flatnonzero(np.asarray(lows, dtype=np.float64) < limit)
     moved = unproven[np.any(planned[unproven] != goals[unproven], axis=1)]
     if not len(moved):
-        return moved
-    near: npt.NDArray[np.intp] = moved[model.world_distances(planned[moved]).min(axis=1, initial=np.inf) < limit]
-    return near
+        return moved, np.zeros(0)
+    clearances = model.world_distances(planned[moved]).min(axis=1, initial=np.inf)
+    near = clearances < limit
+    return moved[near], clearances[near]
 
 
 def linearised(model: Model, planned: Array, ticks: npt.NDArray[np.intp]) -> Halfspaces:
@@ -90,12 +91,6 @@ def linearised(model: Model, planned: Array, ticks: npt.NDArray[np.intp]) -> Hal
     return Halfspaces(ticks, normals, offsets)
 
 
-def _shortfalls(model: Model, planned: Array, ticks: npt.NDArray[np.intp]) -> list[float]:
-    """Per tick of ``ticks``, how far (metres) its planned pose is from the clearance plus twice :data:`MARGIN`."""
-    d = model.world_distances(planned[ticks]).min(axis=1)
-    return [model.clearance + 2.0 * MARGIN - float(x) for x in d]
-
-
 def keep_clear(
     model: Model,
     plan: Callable[[Halfspaces | None], Array],
@@ -113,10 +108,10 @@ def keep_clear(
     raised: dict[int, float] = {}  # per tick, what the rounds before fell short by: asked for again on top
     best: tuple[tuple[int, int], Array] = ((len(goals) + 1, 0), path)  # (worse than any round)
     for round_ in range(ROUNDS + 1):
-        ticks = near_ticks(model, path, goals, lows_of(path))
+        ticks, clearances = near_ticks(model, path, goals, lows_of(path))
         if not len(ticks):
             return path
-        short = _shortfalls(model, path, ticks)
+        short = (model.clearance + 2.0 * MARGIN - clearances).tolist()  # what each falls short of its constraint by
         score = (sum(s > 2.0 * MARGIN for s in short), len(ticks))  # (poses within the clearance, near it)
         if score < best[0]:
             best = (score, path)

@@ -78,7 +78,9 @@ def test_only_poses_moved_off_their_goals_and_not_ruled_out_are_measured():
     planned = np.array([near, near, near, ARM.home])
     goals = np.array([near + 0.01, near, near + 0.01, ARM.home])  # tick 1 is its goal: the IK's clear pose
     lows = np.array([-1.0, -1.0, 1.0, -1.0])  # tick 2 ruled out by its bound
-    assert near_ticks(model, planned, goals, lows).tolist() == [0]
+    ticks, clearances = near_ticks(model, planned, goals, lows)
+    assert ticks.tolist() == [0]
+    np.testing.assert_array_equal(clearances, model.world_distances(near[None]).min(axis=1))
 
 
 @pytest.mark.parametrize("seed", range(3), ids=lambda s: f"seed{s}")
