@@ -384,20 +384,22 @@ def _tool_goals(
     """The IK poses ``qs`` ``(n, n_joints)`` rad polished (when ``polish``), their tool point's Jacobians
     ``(n, 3, n_joints)`` and residuals ``(n, 3)`` m (:func:`tool_task`), zero on the ticks whose IK stopped short of
     a collision (``results``' ``blocked``): the goal there is the IK's nearest clear pose, not the target."""
-    jacobians, residuals = tool_task([(chain, slice(None))], qs, positions)
-    if polish is not None:
+    blocked = np.array([[r.blocked] for r in results], dtype=bool).reshape(len(results), 1)
+    jacobians, residuals = tool_task([(chain, slice(None))], qs, positions, blocked)
+    if polish is not None:  # (never on a blocked tick)
         qs, residuals = polish.step(qs, jacobians, residuals, polish.safe(results, positions), lower, upper)
-    blocked = np.array([r.blocked for r in results], dtype=bool)
-    jacobians[blocked], residuals[blocked] = 0.0, 0.0
     return qs, jacobians, residuals
 
 
-def tool_task(parts: Sequence[tuple[Chain, slice]], q: Array, targets: Array) -> tuple[Array, Array]:
+def tool_task(
+    parts: Sequence[tuple[Chain, slice]], q: Array, targets: Array, held: npt.NDArray[np.bool_] | None = None
+) -> tuple[Array, Array]:
     """:func:`plan_path`'s ``jacobians`` ``(n, 3 n_parts, n_joints)`` and ``residuals`` ``(n, 3 n_parts)`` m for
     the poses ``q`` ``(n, n_joints)`` rad and the targets ``(n, 3 n_parts)`` m (base frames), one tool point per
     part: each ``(chain, joints)`` (one arm: ``slice(None)``; a rig: each arm's slice of the joint vector) gives its
     tool point's Jacobian in its own three rows and its own joints (block-diagonal: an arm's joints move only its
-    own tool), and its residual, the tool point minus its target.
+    own tool), and its residual, the tool point minus its target.  ``held`` ``(n, n_parts)``: the ticks where a part
+    has no task, its rows zero (its IK stopped short of a collision: the goal there is the nearest clear pose).
 
     >>> from retarget.arm.load import load_arm
     >>> arm = load_arm("wx250s")
@@ -410,6 +412,8 @@ def tool_task(parts: Sequence[tuple[Chain, slice]], q: Array, targets: Array) ->
         rows = slice(3 * k, 3 * k + 3)
         tool, jacobians[:, rows, joints] = chain.tool_jacobians(q[:, joints])
         residuals[:, rows] = tool - targets[:, rows]
+        if held is not None:
+            jacobians[held[:, k], rows], residuals[held[:, k], rows] = 0.0, 0.0
     return jacobians, residuals
 
 

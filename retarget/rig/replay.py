@@ -274,10 +274,8 @@ class _RigSource(ClipSlots):
             self.q = self.q.copy()
             start = self.q[0] if self.with_lead_in else np.clip(q_start, plant.lower, plant.upper)
             parts = [(a.arm.chain, part) for a, part in zip(replay.rig.arms, plant.slices, strict=True)]
-            jacobians, residuals = tool_task(parts, self.q[:n], self.targets[:n])  # each arm's own tool point
-            for k, name in enumerate(replay.rig.names):  # an arm's IK stopped short of a collision: its clear pose
-                blocked = replay.paths[name].blocked[:n]
-                jacobians[blocked, 3 * k : 3 * k + 3], residuals[blocked, 3 * k : 3 * k + 3] = 0.0, 0.0
+            blocked = np.stack([replay.paths[name].blocked[:n] for name in replay.rig.names], axis=1)
+            jacobians, residuals = tool_task(parts, self.q[:n], self.targets[:n], blocked)  # each arm's own point
             goals = self.q[:n].copy()
 
             def plan(halfspaces: Halfspaces | None) -> Array:

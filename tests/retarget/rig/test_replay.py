@@ -149,6 +149,25 @@ def test_the_plan_fits_each_arms_tool_point_in_its_own_rows_and_joints():
         np.testing.assert_allclose(residuals[:, rows], tool - aims[:, rows])
 
 
+def test_a_held_arm_has_no_task_on_its_held_ticks():
+    """tool_task's ``held``: an arm's rows are zero on the ticks it is held (its IK stopped short of a collision),
+    the other arm's rows and ticks as without it."""
+    rig = load_rig("wx250s-pair")
+    replay = RigReplay(rig, rig_targets(retarget.load_bvh(DEMO_CLIP), rig), config=LoopConfig(max_ticks=30),
+                       clock=VirtualClock())  # fmt: skip
+    q = np.random.default_rng(5).uniform(replay.plant.lower, replay.plant.upper, (6, len(replay.plant.lower)))
+    aims = np.random.default_rng(6).normal(0.3, 0.1, (6, 3 * len(rig.arms)))
+    parts = [(a.arm.chain, part) for a, part in zip(rig.arms, replay.plant.slices, strict=True)]
+    held = np.zeros((6, 2), dtype=bool)
+    held[[1, 4], 1] = True
+    free_j, free_r = tool_task(parts, q, aims)
+    jacobians, residuals = tool_task(parts, q, aims, held)
+    assert not jacobians[[1, 4], 3:].any() and not residuals[[1, 4], 3:].any()
+    free_j[[1, 4], 3:], free_r[[1, 4], 3:] = 0.0, 0.0
+    np.testing.assert_array_equal(jacobians, free_j)
+    np.testing.assert_array_equal(residuals, free_r)
+
+
 def test_each_arms_ik_path_is_polished_so_its_joints_do_not_saw():
     """Each arm's IK pass (retarget.rig.replay.ArmPath.solve) takes one batched DLS step after its solves
     (retarget.control.polish): its tool points sit within microns of their targets instead of anywhere within the
