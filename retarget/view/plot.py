@@ -154,10 +154,10 @@ def _legend(fig: Figure, axes: list[Axes], lead_in: bool) -> int:
     for rows in range(1, len(seen) + 1):  # as few rows as fit the figure's width (a rig's labels are longer)
         legend = fig.legend(list(seen.values()), list(seen), loc="upper center", ncol=math.ceil(len(seen) / rows),
                             fontsize=8, frameon=False, bbox_to_anchor=top)  # fmt: skip
-        if legend.get_window_extent(renderer).width <= 0.98 * fig.bbox.width:
-            return rows
+        if rows == len(seen) or legend.get_window_extent(renderer).width <= 0.98 * fig.bbox.width:
+            return rows  # (one label a row is kept even when a label is wider than the figure)
         legend.remove()
-    return len(seen)
+    return 0
 
 
 def _joint(ax: Axes, t: np.ndarray, tel: Telemetry, name: str, lo_hi: tuple[float, float] | None) -> None:

@@ -188,3 +188,18 @@ def test_the_legend_wraps_into_as_few_rows_as_fit_the_figure(labels: int, rows: 
     extent = legend.get_window_extent(fig.canvas.get_renderer())  # type: ignore[attr-defined]
     assert 0 <= extent.x0 and extent.x1 <= fig.bbox.width
     plt.close(fig)
+
+
+def test_a_label_wider_than_the_figure_still_gets_its_legend() -> None:
+    """No row count fits: the legend is kept, a label a row (it used to be removed with the last try)."""
+    import matplotlib.pyplot as plt
+
+    from retarget.view.plot import _legend
+
+    fig = plt.figure(figsize=(2, 3), dpi=100)
+    ax = fig.add_subplot()
+    for k in range(3):
+        ax.plot([0, 1], [k, k], label=f"arm {k} with a label far wider than this small figure")
+    assert _legend(fig, [ax], lead_in=False) == 3
+    assert len(fig.legends) == 1
+    plt.close(fig)
